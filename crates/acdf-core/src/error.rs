@@ -1,0 +1,46 @@
+//! The error type of `acdf-core`, shared by the distributions and samplers
+//! that validate their input at construction.
+
+/// Everything that can be wrong with the input to a distribution or sampler.
+///
+/// Construction validates; sampling never fails with an error (it returns a
+/// documented result instead), so these only come out of constructors and
+/// parsers of parameters.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// A table with no entries (or a zero dimension).
+    #[error("{what}: the table is empty")]
+    EmptyTable { what: &'static str },
+
+    /// The table's length does not match the dimensions it was given with.
+    #[error("{what}: expected {expected} values, got {got}")]
+    SizeMismatch {
+        what: &'static str,
+        expected: usize,
+        got: usize,
+    },
+
+    /// NaN or an infinity in a table.
+    #[error("{what}: value {value} at index {index} is not finite")]
+    NonFinite {
+        what: &'static str,
+        index: usize,
+        value: f64,
+    },
+
+    /// A negative value in a table that must be a non-negative density.
+    #[error("{what}: value {value} at index {index} is negative")]
+    Negative {
+        what: &'static str,
+        index: usize,
+        value: f64,
+    },
+
+    /// A parameter out of its domain (a resolution of zero, a tolerance that
+    /// is negative or NaN, a mixing fraction outside [0, 1], ...).
+    #[error("invalid parameter `{name}`: {reason}")]
+    InvalidParameter { name: &'static str, reason: String },
+}
+
+/// `Result` with the crate's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,36 @@
+//! `acdf-core` is the vocabulary every other acdf crate speaks: the traits for
+//! sampling distributions over the unit interval and square (`Distribution1D`,
+//! `Distribution2D`), for BRDF samplers (`BxdfSampler`) and BRDF sources
+//! (`Brdf`); the geometry of the local shading frame, spherical and
+//! Rusinkiewicz half/difference coordinates; the warps shared by several
+//! samplers; and the one error type. It holds no sampler and no data format,
+//! so that plug-ins and material readers depend only on this small crate and
+//! never on each other.
+//!
+//! Conventions used throughout acdf:
+//! - directions live in the local shading frame, `z` along the normal, and both
+//!   `wo` (the given, outgoing direction) and `wi` (the sampled, incident one)
+//!   point away from the surface;
+//! - pdfs of directions are per unit solid angle;
+//! - stored tables are `f32`, sums that accumulate are done in `f64`;
+//! - uniform random numbers are sanitised in exactly one place,
+//!   [`distribution::clamp_unit`].
+
+pub mod brdf;
+pub mod distribution;
+pub mod error;
+pub mod geometry;
+pub mod sampler;
+pub mod warp;
+
+pub use brdf::{luminance, Brdf, Rgb, LUMINANCE_WEIGHTS};
+pub use distribution::{
+    clamp_unit, validate_table, Distribution1D, Distribution2D, Sample1D, Sample2D,
+    ONE_MINUS_EPSILON,
+};
+pub use error::{Error, Result};
+pub use geometry::{Frame, HalfDiff};
+pub use sampler::{is_valid_outgoing, BxdfSample, BxdfSampler};
+
+/// Re-exported so that downstream crates name the same vector types.
+pub use glam::{Vec2, Vec3};

@@ -1,0 +1,83 @@
+//! The interface of BRDF samplers: draw an incident direction for a given
+//! outgoing one, and report the density of any pair.
+//!
+//! The contract every sampler keeps, checked by the conformance battery:
+//! - `wo` must be a unit vector strictly above the horizon (`wo.z > 0`); for
+//!   any other `wo` (at or below the horizon, or not finite) `sample` returns
+//!   `None` and `pdf` returns 0. See [`is_valid_outgoing`].
+//! - `u` outside [0, 1)^2 is mapped by [`clamp_unit`](crate::clamp_unit).
+//! - A returned sample has `wi.z > 0`, a unit `wi`, and a finite pdf > 0 that
+//!   equals `pdf(wo, wi)`. A draw that would land at or below the horizon is
+//!   `None`; its probability is the mass the pdf does not cover, so ∫ pdf ≤ 1.
+//! - `pdf` is finite and non-negative for every input, and 0 for `wi.z <= 0`.
+
+use glam::{Vec2, Vec3};
+
+/// A sampled incident direction and its solid-angle density.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BxdfSample {
+    pub wi: Vec3,
+    pub pdf: f32,
+}
+
+/// Whether `wo` is an outgoing direction samplers accept: finite and strictly
+/// above the horizon.
+#[inline(always)]
+pub fn is_valid_outgoing(wo: Vec3) -> bool {
+    wo.z > 0.0 && wo.is_finite()
+}
+
+/// Draws incident directions for a given outgoing direction.
+pub trait BxdfSampler: Send + Sync {
+    /// A short name, as used on the command line (`cosine`, `uniform`, ...).
+    fn name(&self) -> &str;
+
+    /// Draw wi for the given wo from the uniform pair `u`; `None` when the
+    /// draw falls at or below the horizon or `wo` is not valid.
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample>;
+
+    /// The solid-angle density with which [`sample`](Self::sample) draws `wi`
+    /// given `wo`.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+
+    /// Heap bytes held by the sampler's tables (what is built so far, for
+    /// samplers that build on first use).
+    fn storage_bytes(&self) -> usize;
+
+    /// Sample many `u` for one `wo`: `out[k] = sample(wo, u[k])` for every
+    /// `k` below the shorter of the two lengths. Fast samplers override it.
+    fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        for (o, &u) in out.iter_mut().zip(u) {
+            *o = self.sample(wo, u);
+        }
+    }
+
+    /// Densities of many `wi` for one `wo`: `out[k] = pdf(wo, wi[k])` for every
+    /// `k` below the shorter of the two lengths.
+    fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        for (o, &wi) in out.iter_mut().zip(wi) {
+            *o = self.pdf(wo, wi);
+        }
+    }
+}
+
+impl<T: BxdfSampler + ?Sized> BxdfSampler for Box<T> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        (**self).sample(wo, u)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        (**self).pdf(wo, wi)
+    }
+    fn storage_bytes(&self) -> usize {
+        (**self).storage_bytes()
+    }
+    fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        (**self).sample_batch(wo, u, out)
+    }
+    fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        (**self).pdf_batch(wo, wi, out)
+    }
+}
