@@ -1,0 +1,1 @@
+//! placeholder: RGL tensor files (issue 9).
