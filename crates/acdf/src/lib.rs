@@ -1,37 +1,37 @@
-//! `acdf` is the facade of the acdf workspace: it re-exports the core traits,
-//! the materials and the sampler plug-ins, names samplers for the command
-//! line, and holds the experiments (the results table, sweeps, benchmarks and
-//! the renderer) that the `acdf` binary runs.
+//! `acdf` is the facade of the acdf workspace and the home of its
+//! experiments. It names materials and samplers the way the `acdf` command
+//! does ([`spec`], [`material`], [`registry`]), and holds everything the
+//! command measures, so that tests and other tools call the same code:
+//! the estimator efficiency of a sampler under an environment light
+//! ([`efficiency`]), the per-material results table ([`report`]), the
+//! tolerance sweep of the adaptive simplifiers ([`sweep`]), the sphere
+//! renderer ([`render`]) and the figures ([`plot`]).
+//!
+//! Estimator efficiency is 1 / (V · t): V the variance of the one-sample
+//! estimator of reflected luminance under the procedural sky, averaged over
+//! twelve fixed outgoing directions, and t the time of one `sample` plus, for
+//! a successful draw, one BRDF evaluation and one `pdf` call. The exact
+//! definition is in [`efficiency`].
 
 pub use acdf_core as core;
 pub use acdf_cosine as cosine;
+pub use acdf_materials as materials;
+pub use acdf_uniform as uniform;
 
-use acdf_core::{BxdfSampler, Vec2, Vec3};
-use rand::{Rng, SeedableRng};
+pub mod efficiency;
+pub mod env;
+pub mod error;
+pub mod material;
+pub mod plot;
+pub mod registry;
+pub mod render;
+pub mod report;
+pub mod spec;
+pub mod sweep;
 
-/// Monte Carlo estimate of the directional albedo ∫ f cos θ_i dω_i of a
-/// Lambertian surface with reflectance `rho` (f = rho / π), drawing `n`
-/// directions from `sampler` for outgoing direction `wo`. Returns the mean and
-/// its standard error.
-pub fn lambert_albedo_estimate(
-    sampler: &dyn BxdfSampler,
-    rho: f32,
-    wo: Vec3,
-    n: usize,
-    seed: u64,
-) -> (f64, f64) {
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
-    for _ in 0..n {
-        let u = Vec2::new(rng.random(), rng.random());
-        let w = match sampler.sample(wo, u) {
-            Some(s) => (rho / std::f32::consts::PI * s.wi.z / s.pdf) as f64,
-            None => 0.0,
-        };
-        sum += w;
-        sum2 += w * w;
-    }
-    let mean = sum / n as f64;
-    let var = (sum2 / n as f64 - mean * mean).max(0.0);
-    (mean, (var / n as f64).sqrt())
-}
+pub use efficiency::{measure_efficiency, Efficiency, EfficiencyConfig};
+pub use env::{EnvMap, Environment, Sky};
+pub use error::{Error, Result};
+pub use material::{load_material, Material};
+pub use registry::{make_sampler, AnySampler, SamplerOptions};
+pub use spec::{MaterialSpec, SamplerSpec, SimplifierName};

@@ -1,0 +1,413 @@
+//! Sampling throughput, as `acdf bench` measures it: how many samples per
+//! second the distributions and the BRDF samplers deliver, and how long the
+//! full 4D tables take to build.
+//!
+//! Every rate is samples (or densities) per second of wall-clock time, the
+//! best of `repeats` runs over the same pre-drawn uniform numbers (a shared
+//! machine only ever makes a run slower). The uniform numbers come from a
+//! fixed-seed PCG so runs are comparable. What is timed:
+//!
+//! - **2D distributions**: the slice of the built-in material for the middle
+//!   outgoing cell (θ_o cell 16 of 32 at the isotropic resolution,
+//!   256 θ_h × 32 φ_h), as a [`PiecewiseConstant2D`] and as an
+//!   [`AdaptiveCdf2D`] (Douglas-Peucker at its default tolerance, the
+//!   default `adaptive` sampler); `sample_batch` over all the numbers on one
+//!   thread, and split into chunks over every rayon thread.
+//! - **BRDF samplers** (`uniform`, `adaptive`) on the built-in material at
+//!   the isotropic resolution, all slices built beforehand: `sample` called
+//!   once per draw with the outgoing direction changing every draw (the
+//!   renderer's case), `sample_batch` for one outgoing direction, and `pdf`
+//!   once per pair.
+//! - **Builds**: the material tabulated into a MERL-layout table
+//!   ([`MerlTable::tabulate`], not timed), then every slice of the uniform
+//!   and the adaptive sampler built from that table with `build_all` (all
+//!   threads) at the build resolution (the paper's 32x16x256x32 by default).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use acdf_adaptive::{AdaptiveBuilder, AdaptiveCdf2D};
+use acdf_core::geometry::spherical_direction;
+use acdf_core::{Brdf, BxdfSampler, Distribution2D, Sample2D, Vec2, Vec3};
+use acdf_materials::merl::MerlTable;
+use acdf_uniform::{
+    tabulate_slice, PiecewiseConstant2D, PiecewiseConstantBuilder, Resolution, SliceBuilder,
+    TabulatedBrdfSampler, UniformBrdfSampler,
+};
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use acdf::error::{Error, Result};
+
+/// What `acdf bench` runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchConfig {
+    /// Built-in material name (`acdf_materials::builtin`).
+    pub material: String,
+    /// Uniform pairs drawn per timed run.
+    pub samples: usize,
+    /// Runs per figure; the best is reported.
+    pub repeats: usize,
+    /// Resolution of the timed 4D builds.
+    pub build_resolution: Resolution,
+    /// Seed of the uniform numbers.
+    pub seed: u64,
+}
+
+impl Default for BenchConfig {
+    /// Built-in nickel, 10^6 samples, best of 3, builds at the paper's
+    /// resolution.
+    fn default() -> Self {
+        BenchConfig {
+            material: "nickel".to_string(),
+            samples: 1_000_000,
+            repeats: 3,
+            build_resolution: Resolution::PAPER,
+            seed: 1,
+        }
+    }
+}
+
+/// The results of `acdf bench`, as written to its JSON file. Field names are
+/// stable; rates are per second of wall-clock time (best of `repeats`),
+/// sizes in bytes, times in seconds.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchReport {
+    /// The built-in material measured.
+    pub material: String,
+    /// Uniform pairs per timed run.
+    pub samples: usize,
+    /// Runs per figure (the best is kept).
+    pub repeats: usize,
+    /// Rayon threads used by the `*_all_threads` figures and the builds.
+    pub threads: usize,
+    /// The 1-minute load average when the run started (Linux
+    /// `/proc/loadavg`), `null` where unavailable: a loaded machine gives
+    /// lower rates.
+    pub load_average: Option<f64>,
+    /// The 2D distributions of one slice (256 θ_h × 32 φ_h).
+    pub distributions: Vec<DistributionBench>,
+    /// The BRDF samplers at the isotropic resolution 32x1x256x32.
+    pub samplers: Vec<SamplerBench>,
+    /// The full 4D builds from a MERL-layout table.
+    pub builds: Vec<BuildBench>,
+}
+
+/// Throughput of one 2D distribution.
+#[derive(Debug, Clone, Serialize)]
+pub struct DistributionBench {
+    /// `piecewise_constant_2d` or `adaptive_2d`.
+    pub name: String,
+    /// Cells along x (φ_h) and y (θ_h) of the tabulated slice.
+    pub nx: usize,
+    pub ny: usize,
+    /// `sample_batch` on one thread, samples per second.
+    pub samples_per_second_one_thread: f64,
+    /// `sample_batch` on chunks spread over all threads, samples per second.
+    pub samples_per_second_all_threads: f64,
+    /// `Distribution2D::storage_bytes` of the distribution.
+    pub storage_bytes: usize,
+}
+
+/// Throughput of one BRDF sampler, on one thread.
+#[derive(Debug, Clone, Serialize)]
+pub struct SamplerBench {
+    /// The sampler name (`uniform`, `adaptive:dp`).
+    pub name: String,
+    /// Its resolution, e.g. `32x1x256x32`.
+    pub resolution: String,
+    /// `sample` called per draw, outgoing direction changing every draw.
+    pub sample_per_second: f64,
+    /// `sample_batch` for one outgoing direction, samples per second.
+    pub sample_batch_per_second: f64,
+    /// `pdf` called per (wo, wi) pair, densities per second.
+    pub pdf_per_second: f64,
+    /// `BxdfSampler::storage_bytes` with every slice built.
+    pub storage_bytes: usize,
+}
+
+/// Time to build every slice of a sampler from a MERL-layout table.
+#[derive(Debug, Clone, Serialize)]
+pub struct BuildBench {
+    /// The sampler name (`uniform`, `adaptive:dp`).
+    pub name: String,
+    /// The resolution built, e.g. `32x16x256x32`.
+    pub resolution: String,
+    /// Wall-clock seconds of `build_all` (all threads), best of `repeats`.
+    pub seconds: f64,
+    /// `BxdfSampler::storage_bytes` once built.
+    pub storage_bytes: usize,
+}
+
+/// The best (shortest) wall-clock seconds of `repeats` calls of `run`.
+fn best_seconds(repeats: usize, mut run: impl FnMut()) -> f64 {
+    (0..repeats.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            run();
+            start.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+        .max(1e-9)
+}
+
+/// The 1-minute load average from `/proc/loadavg`, if readable.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// Chunk of draws per `sample_batch` call (and per rayon task).
+const CHUNK: usize = 4096;
+
+/// Time `sample_batch` of one distribution on one thread and on all.
+fn bench_distribution(
+    name: &str,
+    dist: &dyn Distribution2D,
+    (nx, ny): (usize, usize),
+    u: &[Vec2],
+    repeats: usize,
+) -> DistributionBench {
+    let mut out = vec![Sample2D::default(); u.len()];
+    let one = best_seconds(repeats, || {
+        for (uc, oc) in u.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
+            dist.sample_batch(uc, oc);
+        }
+        std::hint::black_box(&out);
+    });
+    let all = best_seconds(repeats, || {
+        u.par_chunks(CHUNK)
+            .zip(out.par_chunks_mut(CHUNK))
+            .for_each(|(uc, oc)| dist.sample_batch(uc, oc));
+        std::hint::black_box(&out);
+    });
+    let n = u.len() as f64;
+    DistributionBench {
+        name: name.to_string(),
+        nx,
+        ny,
+        samples_per_second_one_thread: n / one,
+        samples_per_second_all_threads: n / all,
+        storage_bytes: dist.storage_bytes(),
+    }
+}
+
+/// Outgoing directions for the per-call figures: θ_o from 5° to 80°, φ_o
+/// spread over the circle.
+fn outgoing_directions(count: usize) -> Vec<Vec3> {
+    (0..count)
+        .map(|k| {
+            let t = (k as f32 + 0.5) / count as f32;
+            spherical_direction(
+                (5.0 + 75.0 * t).to_radians(),
+                std::f32::consts::TAU * (k as f32 * 0.618_034).fract(),
+            )
+        })
+        .collect()
+}
+
+/// Time `sample`, `sample_batch` and `pdf` of a built sampler on one thread.
+fn bench_sampler<B: SliceBuilder>(
+    sampler: &TabulatedBrdfSampler<B>,
+    u: &[Vec2],
+    repeats: usize,
+) -> SamplerBench {
+    let wos = outgoing_directions(64);
+    let n = u.len() as f64;
+    let mut drawn: Vec<(Vec3, Vec3)> = Vec::with_capacity(u.len());
+    let per_call = best_seconds(repeats, || {
+        drawn.clear();
+        for (k, &u) in u.iter().enumerate() {
+            let wo = wos[k % wos.len()];
+            if let Some(s) = sampler.sample(wo, u) {
+                drawn.push((wo, s.wi));
+            }
+        }
+        std::hint::black_box(&drawn);
+    });
+    let wo = spherical_direction(0.6, 1.3);
+    let mut out = vec![None; u.len()];
+    let batch = best_seconds(repeats, || {
+        for (uc, oc) in u.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
+            sampler.sample_batch(wo, uc, oc);
+        }
+        std::hint::black_box(&out);
+    });
+    let pdf = best_seconds(repeats, || {
+        let mut total = 0.0f32;
+        for &(wo, wi) in &drawn {
+            total += sampler.pdf(wo, wi);
+        }
+        std::hint::black_box(total);
+    });
+    SamplerBench {
+        name: sampler.name().to_string(),
+        resolution: sampler.resolution().to_string(),
+        sample_per_second: n / per_call,
+        sample_batch_per_second: n / batch,
+        pdf_per_second: drawn.len().max(1) as f64 / pdf,
+        storage_bytes: sampler.storage_bytes(),
+    }
+}
+
+/// Time `build_all` of a fresh sampler made by `make`, best of `repeats`.
+fn bench_build<B: SliceBuilder>(
+    repeats: usize,
+    make: impl Fn() -> Result<TabulatedBrdfSampler<B>>,
+) -> Result<BuildBench> {
+    let mut seconds = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let sampler = make()?;
+        let start = Instant::now();
+        sampler.build_all()?;
+        seconds = seconds.min(start.elapsed().as_secs_f64());
+        last = Some(sampler);
+    }
+    let sampler = last.ok_or_else(|| Error::InvalidArgument {
+        what: "repeats",
+        value: repeats.to_string(),
+        reason: "nothing was built".into(),
+    })?;
+    Ok(BuildBench {
+        name: sampler.name().to_string(),
+        resolution: sampler.resolution().to_string(),
+        seconds,
+        storage_bytes: sampler.storage_bytes(),
+    })
+}
+
+/// Run every measurement of `config`.
+pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
+    if config.samples == 0 {
+        return Err(Error::InvalidArgument {
+            what: "samples",
+            value: "0".into(),
+            reason: "must be at least 1".into(),
+        });
+    }
+    let load_average = load_average();
+    let brdf: Arc<dyn Brdf> =
+        acdf_materials::builtin(&config.material).map_err(|e| Error::UnknownMaterial {
+            spec: format!("builtin:{}", config.material),
+            reason: e.to_string(),
+        })?;
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(config.seed);
+    let u: Vec<Vec2> = (0..config.samples)
+        .map(|_| Vec2::new(rng.random(), rng.random()))
+        .collect();
+    let repeats = config.repeats.max(1);
+
+    // (a), (b): one slice, middle outgoing cell, as both distributions.
+    let res = Resolution::ISOTROPIC;
+    let values = tabulate_slice(&*brdf, &res, res.theta_o / 2, 0);
+    let (nx, ny) = (res.phi_h, res.theta_h);
+    let uniform_2d = PiecewiseConstant2D::new(&values, nx, ny)?;
+    let adaptive_builder = AdaptiveBuilder::by_name("dp", None)?;
+    let adaptive_2d: AdaptiveCdf2D = adaptive_builder.build(&values, nx, ny)?;
+    let distributions = vec![
+        bench_distribution("piecewise_constant_2d", &uniform_2d, (nx, ny), &u, repeats),
+        bench_distribution("adaptive_2d", &adaptive_2d, (nx, ny), &u, repeats),
+    ];
+
+    // (c): the samplers, every slice built before timing.
+    let uniform = UniformBrdfSampler::new(brdf.clone(), res, PiecewiseConstantBuilder)?;
+    uniform.build_all()?;
+    let adaptive = TabulatedBrdfSampler::new(brdf.clone(), res, adaptive_builder.clone())?;
+    adaptive.build_all()?;
+    let samplers = vec![
+        bench_sampler(&uniform, &u, repeats),
+        bench_sampler(&adaptive, &u, repeats),
+    ];
+    drop((uniform, adaptive));
+
+    // (d): the full 4D builds from a MERL-layout table.
+    let merl: Arc<dyn Brdf> = Arc::new(MerlTable::tabulate(&*brdf));
+    let build_res = config.build_resolution;
+    let builds = vec![
+        bench_build(repeats, || {
+            Ok(UniformBrdfSampler::new(
+                merl.clone(),
+                build_res,
+                PiecewiseConstantBuilder,
+            )?)
+        })?,
+        bench_build(repeats, || {
+            Ok(TabulatedBrdfSampler::new(
+                merl.clone(),
+                build_res,
+                adaptive_builder.clone(),
+            )?)
+        })?,
+    ];
+
+    Ok(BenchReport {
+        material: config.material.clone(),
+        samples: config.samples,
+        repeats,
+        threads: rayon::current_num_threads(),
+        load_average,
+        distributions,
+        samplers,
+        builds,
+    })
+}
+
+/// The report as a plain-text table (millions per second, MB, seconds).
+pub fn format_bench(report: &BenchReport) -> String {
+    let mut s = format!(
+        "material {}, {} samples, best of {}, {} threads, load average {}\n",
+        report.material,
+        report.samples,
+        report.repeats,
+        report.threads,
+        report
+            .load_average
+            .map_or_else(|| "unknown".to_string(), |l| format!("{l:.2}"))
+    );
+    s.push_str(&format!(
+        "{:<24} {:>10} {:>12} {:>12}\n",
+        "distribution", "size", "M/s 1 thr", "M/s all"
+    ));
+    for d in &report.distributions {
+        s.push_str(&format!(
+            "{:<24} {:>10} {:>12.2} {:>12.2}   {} bytes\n",
+            d.name,
+            format!("{}x{}", d.ny, d.nx),
+            d.samples_per_second_one_thread / 1e6,
+            d.samples_per_second_all_threads / 1e6,
+            d.storage_bytes
+        ));
+    }
+    s.push_str(&format!(
+        "{:<24} {:>12} {:>12} {:>12} {:>12}\n",
+        "sampler", "resolution", "sample M/s", "batch M/s", "pdf M/s"
+    ));
+    for b in &report.samplers {
+        s.push_str(&format!(
+            "{:<24} {:>12} {:>12.2} {:>12.2} {:>12.2}   {} bytes\n",
+            b.name,
+            b.resolution,
+            b.sample_per_second / 1e6,
+            b.sample_batch_per_second / 1e6,
+            b.pdf_per_second / 1e6,
+            b.storage_bytes
+        ));
+    }
+    s.push_str(&format!(
+        "{:<24} {:>12} {:>12}\n",
+        "build (MERL table)", "resolution", "seconds"
+    ));
+    for b in &report.builds {
+        s.push_str(&format!(
+            "{:<24} {:>12} {:>12.3}   {} bytes\n",
+            b.name, b.resolution, b.seconds, b.storage_bytes
+        ));
+    }
+    s
+}

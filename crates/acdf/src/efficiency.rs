@@ -1,0 +1,413 @@
+//! Estimator efficiency: how much a sampler's importance sampling is worth per
+//! second of work.
+//!
+//! Fix an environment light L (in `acdf report` and `acdf sweep`, the
+//! procedural sky without its sun, [`Sky::dome`](crate::env::Sky::dome)),
+//! a surface whose normal points up (world `+y`) and a set of outgoing
+//! directions ω_o,j. For each ω_o,j draw ω_i,k from the sampler and form the
+//! one-sample estimator of the reflected luminance
+//!
+//! Y_k = Y( f_r(ω_o, ω_i,k) ⊙ L(ω_i,k) ) · cos θ_i,k / p(ω_i,k),
+//!
+//! where Y is the Rec. 709 luminance and ⊙ the product per channel; a draw
+//! that fails (`None`) contributes Y_k = 0. With s²_j the unbiased sample
+//! variance of the Y_k for ω_o,j, the **variance** is V = (1/J) Σ_j s²_j.
+//!
+//! The **time per sample** is t = t_sample + v·(t_eval + t_pdf), measured on
+//! one thread after every table is built: t_sample is the mean time of one
+//! `sample` call over 12 × `timing_samples_per_direction` draws, t_eval of one
+//! BRDF evaluation and t_pdf of one `pdf` call at the directions those draws
+//! returned, and v is the fraction of draws that succeed (a failed draw needs
+//! neither). Each of the three is the fastest of three timed passes, which
+//! discounts interference from other processes. The environment lookup is not
+//! included: it is the same for every sampler.
+//!
+//! The **efficiency** is 1 / (V · t), in 1/s (for luminance in units of the
+//! environment's radiance); reports also divide it by the efficiency of the
+//! uniform tabulated sampler.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use acdf_core::{luminance, Brdf, BxdfSampler, Frame, Vec2, Vec3};
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::env::Environment;
+
+/// The outgoing directions of every efficiency measurement: θ_o ∈ {10°, 30°,
+/// 50°, 70°} × φ_o ∈ {0°, 120°, 240°}, in the local shading frame.
+pub fn standard_outgoing_directions() -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(12);
+    for theta in [10.0f32, 30.0, 50.0, 70.0] {
+        for phi in [0.0f32, 120.0, 240.0] {
+            out.push(acdf_core::geometry::spherical_direction(
+                theta.to_radians(),
+                phi.to_radians(),
+            ));
+        }
+    }
+    out
+}
+
+/// The shading frame of the measured surface: its normal is world `+y`, so it
+/// faces the sky.
+pub fn standard_frame() -> Frame {
+    Frame::from_z(Vec3::Y)
+}
+
+/// What to measure with.
+#[derive(Debug, Clone)]
+pub struct EfficiencyConfig {
+    /// Outgoing directions ω_o,j in the local frame (each with ω_o.z > 0).
+    pub outgoing: Vec<Vec3>,
+    /// The local shading frame in world space.
+    pub frame: Frame,
+    /// Draws per outgoing direction for the variance.
+    pub samples_per_direction: usize,
+    /// Draws per outgoing direction for each timed pass.
+    pub timing_samples_per_direction: usize,
+    /// Seed of the uniform numbers; the same for every sampler (common random
+    /// numbers), so differences come from the samplers.
+    pub seed: u64,
+}
+
+impl Default for EfficiencyConfig {
+    /// 12 standard directions × 2^17 draws for the variance (1.6 M draws; the
+    /// relative standard error of V is printed with it), 2^13 timed draws per
+    /// direction.
+    fn default() -> Self {
+        EfficiencyConfig {
+            outgoing: standard_outgoing_directions(),
+            frame: standard_frame(),
+            samples_per_direction: 1 << 17,
+            timing_samples_per_direction: 1 << 13,
+            seed: 2005,
+        }
+    }
+}
+
+impl EfficiencyConfig {
+    /// Total draws behind the variance estimate.
+    pub fn total_samples(&self) -> usize {
+        self.outgoing.len() * self.samples_per_direction
+    }
+}
+
+/// Per-call times, in seconds, of the three operations a sample costs.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Timing {
+    /// Mean time of one `sample` call.
+    pub seconds_per_draw: f64,
+    /// Mean time of one `pdf` call at a drawn direction.
+    pub seconds_per_pdf: f64,
+    /// Mean time of one BRDF evaluation at a drawn direction.
+    pub seconds_per_eval: f64,
+    /// Fraction of draws that returned a direction.
+    pub valid_fraction: f64,
+}
+
+impl Timing {
+    /// t = t_sample + v·(t_eval + t_pdf).
+    pub fn seconds_per_sample(&self) -> f64 {
+        self.seconds_per_draw + self.valid_fraction * (self.seconds_per_eval + self.seconds_per_pdf)
+    }
+}
+
+/// The outcome of [`measure_efficiency`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Efficiency {
+    /// The sampler's name.
+    pub sampler: String,
+    /// (1/J) Σ_j mean_k Y_k: the reflected luminance averaged over the
+    /// outgoing directions (equal for all unbiased samplers up to noise).
+    pub estimate: f64,
+    /// Standard error of `estimate`.
+    pub estimate_se: f64,
+    /// V = (1/J) Σ_j s²_j.
+    pub variance: f64,
+    /// Relative standard error of V (from the fourth moments).
+    pub variance_rel_se: f64,
+    /// Draws behind V.
+    pub samples: usize,
+    /// The per-call times.
+    pub timing: Timing,
+    /// t = t_sample + v·(t_eval + t_pdf).
+    pub seconds_per_sample: f64,
+    /// 1 / (V·t).
+    pub efficiency: f64,
+}
+
+/// Moments of the estimator for one outgoing direction.
+struct DirectionMoments {
+    mean: f64,
+    variance: f64,
+    /// Var(s²) ≈ (m4 − s⁴ (n−3)/(n−1)) / n.
+    variance_of_variance: f64,
+}
+
+fn uniform_pairs(seed: u64, stream: usize, n: usize) -> Vec<Vec2> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(
+        seed ^ (stream as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+    );
+    (0..n)
+        .map(|_| Vec2::new(rng.random(), rng.random()))
+        .collect()
+}
+
+/// Y_k for one draw: Y(f ⊙ L) cos θ_i / p, or 0 for a failed draw.
+#[inline]
+fn luminance_estimate(
+    brdf: &dyn Brdf,
+    env: &dyn Environment,
+    frame: &Frame,
+    wo: Vec3,
+    wi: Vec3,
+    pdf: f32,
+) -> f64 {
+    if pdf <= 0.0 || !pdf.is_finite() {
+        return 0.0;
+    }
+    let f = brdf.eval(wo, wi);
+    let l = env.radiance(frame.to_world(wi));
+    let y = luminance(f * l) as f64 * wi.z.max(0.0) as f64 / pdf as f64;
+    if y.is_finite() {
+        y
+    } else {
+        0.0
+    }
+}
+
+fn direction_moments(
+    brdf: &dyn Brdf,
+    sampler: &dyn BxdfSampler,
+    env: &dyn Environment,
+    frame: &Frame,
+    wo: Vec3,
+    u: &[Vec2],
+) -> DirectionMoments {
+    let n = u.len().max(1);
+    let ys: Vec<f64> = u
+        .iter()
+        .map(|&u| match sampler.sample(wo, u) {
+            Some(s) => luminance_estimate(brdf, env, frame, wo, s.wi, s.pdf),
+            None => 0.0,
+        })
+        .collect();
+    let mean = ys.iter().sum::<f64>() / n as f64;
+    let (mut m2, mut m4) = (0.0f64, 0.0f64);
+    for y in &ys {
+        let d = y - mean;
+        let d2 = d * d;
+        m2 += d2;
+        m4 += d2 * d2;
+    }
+    let nf = n as f64;
+    let variance = if n > 1 { m2 / (nf - 1.0) } else { 0.0 };
+    let m4 = m4 / nf;
+    let variance_of_variance = if n > 3 {
+        ((m4 - variance * variance * (nf - 3.0) / (nf - 1.0)) / nf).max(0.0)
+    } else {
+        0.0
+    };
+    DirectionMoments {
+        mean,
+        variance,
+        variance_of_variance,
+    }
+}
+
+/// Time the three operations of a sample on this thread, best of three
+/// passes over every outgoing direction.
+pub fn measure_timing(
+    brdf: &dyn Brdf,
+    sampler: &dyn BxdfSampler,
+    outgoing: &[Vec3],
+    samples_per_direction: usize,
+    seed: u64,
+) -> Timing {
+    let n = samples_per_direction.max(1);
+    let us: Vec<Vec<Vec2>> = (0..outgoing.len())
+        .map(|j| uniform_pairs(seed ^ 0x7431, j, n))
+        .collect();
+    // The directions drawn in the first pass feed the pdf and eval passes,
+    // which therefore see the same distribution of wi as real use.
+    let mut drawn: Vec<Vec<Vec3>> = vec![Vec::with_capacity(n); outgoing.len()];
+    let (mut best_draw, mut best_pdf, mut best_eval) =
+        (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut draws = 0usize;
+    let mut valid = 0usize;
+    for pass in 0..3 {
+        let start = Instant::now();
+        for (j, &wo) in outgoing.iter().enumerate() {
+            for &u in &us[j] {
+                let s = black_box(sampler.sample(black_box(wo), black_box(u)));
+                if pass == 0 {
+                    draws += 1;
+                    if let Some(s) = s {
+                        valid += 1;
+                        drawn[j].push(s.wi);
+                    }
+                }
+            }
+        }
+        best_draw = best_draw.min(start.elapsed().as_secs_f64());
+
+        let start = Instant::now();
+        for (j, &wo) in outgoing.iter().enumerate() {
+            for &wi in &drawn[j] {
+                black_box(sampler.pdf(black_box(wo), black_box(wi)));
+            }
+        }
+        best_pdf = best_pdf.min(start.elapsed().as_secs_f64());
+
+        let start = Instant::now();
+        for (j, &wo) in outgoing.iter().enumerate() {
+            for &wi in &drawn[j] {
+                black_box(brdf.eval(black_box(wo), black_box(wi)));
+            }
+        }
+        best_eval = best_eval.min(start.elapsed().as_secs_f64());
+    }
+    let draws = draws.max(1) as f64;
+    let valid_calls = valid.max(1) as f64;
+    Timing {
+        seconds_per_draw: best_draw / draws,
+        seconds_per_pdf: best_pdf / valid_calls,
+        seconds_per_eval: best_eval / valid_calls,
+        valid_fraction: valid as f64 / draws,
+    }
+}
+
+/// Measure variance, time per sample and efficiency of `sampler` for `brdf`
+/// under `env`, as defined in the module documentation. The variance pass runs
+/// in parallel over outgoing directions (and so also builds any lazily built
+/// tables before the timing pass); the timing pass runs on this thread.
+pub fn measure_efficiency(
+    brdf: &dyn Brdf,
+    sampler: &dyn BxdfSampler,
+    env: &dyn Environment,
+    config: &EfficiencyConfig,
+) -> Efficiency {
+    let n = config.samples_per_direction.max(2);
+    let moments: Vec<DirectionMoments> = config
+        .outgoing
+        .par_iter()
+        .enumerate()
+        .map(|(j, &wo)| {
+            let u = uniform_pairs(config.seed, j, n);
+            direction_moments(brdf, sampler, env, &config.frame, wo, &u)
+        })
+        .collect();
+    let timing = measure_timing(
+        brdf,
+        sampler,
+        &config.outgoing,
+        config.timing_samples_per_direction,
+        config.seed,
+    );
+    summarise(sampler.name(), &moments, n, timing)
+}
+
+fn summarise(name: &str, moments: &[DirectionMoments], n: usize, timing: Timing) -> Efficiency {
+    let j = moments.len().max(1) as f64;
+    let estimate = moments.iter().map(|m| m.mean).sum::<f64>() / j;
+    let variance = moments.iter().map(|m| m.variance).sum::<f64>() / j;
+    let estimate_se = (moments.iter().map(|m| m.variance / n as f64).sum::<f64>()).sqrt() / j;
+    let variance_se = moments
+        .iter()
+        .map(|m| m.variance_of_variance)
+        .sum::<f64>()
+        .sqrt()
+        / j;
+    let variance_rel_se = if variance > 0.0 {
+        variance_se / variance
+    } else {
+        0.0
+    };
+    let seconds_per_sample = timing.seconds_per_sample();
+    let efficiency = if variance > 0.0 && seconds_per_sample > 0.0 {
+        1.0 / (variance * seconds_per_sample)
+    } else {
+        f64::INFINITY
+    };
+    Efficiency {
+        sampler: name.to_string(),
+        estimate,
+        estimate_se,
+        variance,
+        variance_rel_se,
+        samples: moments.len() * n,
+        timing,
+        seconds_per_sample,
+        efficiency,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::env::Sky;
+    use acdf_core::Rgb;
+    use acdf_materials::analytic::Lambert;
+
+    /// The Lambertian material of albedo `rho` in every channel.
+    fn lambert(rho: f32) -> Lambert {
+        Lambert::new("lambert", Rgb::splat(rho)).unwrap()
+    }
+
+    /// f = ρ/π: the cosine sampler's estimator of the reflected luminance.
+
+    /// A constant environment makes Y_k constant for cosine sampling of a
+    /// Lambertian surface: the variance must vanish and the estimate equal ρ.
+    struct White;
+    impl Environment for White {
+        fn radiance(&self, _dir: Vec3) -> Rgb {
+            Vec3::ONE
+        }
+    }
+
+    fn small() -> EfficiencyConfig {
+        EfficiencyConfig {
+            samples_per_direction: 4096,
+            timing_samples_per_direction: 256,
+            ..EfficiencyConfig::default()
+        }
+    }
+
+    #[test]
+    fn cosine_sampling_of_lambert_under_white_light_has_zero_variance() {
+        let e = measure_efficiency(&lambert(0.5), &acdf_cosine::CosineSampler, &White, &small());
+        assert!((e.estimate - 0.5).abs() < 1e-5, "{}", e.estimate);
+        assert!(e.variance < 1e-10, "{}", e.variance);
+        assert_eq!(e.samples, 12 * 4096);
+        assert!(e.seconds_per_sample > 0.0);
+    }
+
+    /// Under the sky the estimate is the irradiance-weighted albedo; the
+    /// variance is positive and its relative error small at 2^12 × 12 draws.
+    #[test]
+    fn sky_estimate_is_positive_and_variance_is_finite() {
+        let e = measure_efficiency(
+            &lambert(0.5),
+            &acdf_cosine::CosineSampler,
+            &Sky::default(),
+            &small(),
+        );
+        assert!(e.estimate > 0.1 && e.estimate.is_finite());
+        assert!(e.variance > 0.0 && e.variance.is_finite());
+        assert!(e.variance_rel_se < 0.5, "{}", e.variance_rel_se);
+        assert!(e.efficiency.is_finite() && e.efficiency > 0.0);
+        assert!(e.timing.valid_fraction > 0.99);
+    }
+
+    #[test]
+    fn standard_directions_are_above_the_horizon() {
+        let dirs = standard_outgoing_directions();
+        assert_eq!(dirs.len(), 12);
+        assert!(dirs
+            .iter()
+            .all(|w| w.z > 0.0 && (w.length() - 1.0).abs() < 1e-5));
+    }
+}

@@ -1,0 +1,93 @@
+//! The one error type of the `acdf` facade and command. Every variant prints
+//! as a single line, so the command can report any failure as one line on
+//! stderr.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong while naming, loading, measuring or writing.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// `--material` named nothing acdf knows.
+    #[error("unknown material `{spec}`: {reason}")]
+    UnknownMaterial { spec: String, reason: String },
+
+    /// A material was named correctly but could not be loaded.
+    #[error("material `{spec}`: {message}")]
+    Material { spec: String, message: String },
+
+    /// `--sampler` named nothing acdf knows.
+    #[error(
+        "unknown sampler `{0}`: expected one of cosine, uniform, adaptive, adaptive:dp, \
+         adaptive:vw, adaptive:rw, adaptive:optimal, adaptive:chi2, rgl"
+    )]
+    UnknownSampler(String),
+
+    /// The sampler cannot be used with this material (e.g. `rgl` needs a
+    /// `.bsdf` file).
+    #[error("sampler `{sampler}` cannot be used with material `{material}`: {reason}")]
+    Incompatible {
+        sampler: String,
+        material: String,
+        reason: String,
+    },
+
+    /// A command-line value that parses but is out of its domain, or does
+    /// not parse.
+    #[error("invalid {what} `{value}`: {reason}")]
+    InvalidArgument {
+        what: &'static str,
+        value: String,
+        reason: String,
+    },
+
+    /// A malformed line of standard input.
+    #[error("stdin line {line}: {reason}")]
+    Input { line: usize, reason: String },
+
+    /// Reading or writing a file.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+
+    /// Reading or writing standard streams.
+    #[error("i/o: {0}")]
+    Stream(#[from] std::io::Error),
+
+    /// Decoding or encoding an image.
+    #[error("image {}: {message}", path.display())]
+    Image { path: PathBuf, message: String },
+
+    /// Drawing a plot.
+    #[error("plot {}: {message}", path.display())]
+    Plot { path: PathBuf, message: String },
+
+    /// A sampler file could not be written or read.
+    #[error("sampler file {}: {source}", path.display())]
+    SamplerFile {
+        path: PathBuf,
+        source: acdf_uniform::persist::PersistError,
+    },
+
+    /// A sampler or distribution rejected its parameters.
+    #[error("{0}")]
+    Core(#[from] acdf_core::Error),
+
+    /// Serialising results.
+    #[error("json: {0}")]
+    Json(#[from] serde_json::Error),
+}
+
+impl Error {
+    /// Wrap an I/O error with the path it happened on.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Error {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+/// `Result` with the facade's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,152 @@
+//! Loading a material from its command-line name ([`MaterialSpec`]).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use acdf_core::Brdf;
+use acdf_materials::merl::MerlTable;
+use acdf_materials::nbrdf::{NbrdfLibrary, NAMES_FILE, WEIGHTS_FILE};
+use acdf_materials::rgl::RglBrdf;
+
+use crate::error::{Error, Result};
+use crate::spec::MaterialSpec;
+
+/// The Neural-BRDF weight file used when `--nbrdf-weights` is not given,
+/// relative to the working directory (the repository root, with `shared/`
+/// beside it).
+pub const DEFAULT_NBRDF_WEIGHTS: &str = "../shared/data/merl-neural-brdf/merl_nbrdf_weights.f32";
+
+/// A loaded material: the BRDF every sampler and estimator uses, and the RGL
+/// file itself when the material is one (the `rgl` sampler needs it).
+#[derive(Clone)]
+pub struct Material {
+    /// What it was loaded from.
+    pub spec: MaterialSpec,
+    /// f_r.
+    pub brdf: Arc<dyn Brdf>,
+    /// The `.bsdf` data, for RGL materials only.
+    pub rgl: Option<Arc<RglBrdf>>,
+}
+
+impl std::fmt::Debug for Material {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Material")
+            .field("spec", &self.spec)
+            .field("brdf", &self.brdf.name())
+            .finish()
+    }
+}
+
+impl Material {
+    /// A short name for tables.
+    pub fn label(&self) -> String {
+        self.spec.label()
+    }
+}
+
+fn material_error(spec: &MaterialSpec, e: impl std::fmt::Display) -> Error {
+    Error::Material {
+        spec: spec.to_string(),
+        message: e.to_string().replace('\n', " "),
+    }
+}
+
+/// Where the Neural-BRDF weights are: `explicit` if given, else
+/// [`DEFAULT_NBRDF_WEIGHTS`] if it exists, else the shared data directory of
+/// `acdf_materials::shared_data_dir`.
+pub fn nbrdf_weights_path(explicit: Option<&Path>) -> Option<PathBuf> {
+    if let Some(p) = explicit {
+        return Some(p.to_path_buf());
+    }
+    let default = PathBuf::from(DEFAULT_NBRDF_WEIGHTS);
+    if default.is_file() {
+        return Some(default);
+    }
+    acdf_materials::shared_data_dir()
+        .map(|d| d.join(acdf_materials::nbrdf::DATA_DIR).join(WEIGHTS_FILE))
+}
+
+/// Load the network library from a weight file (whose material names are in
+/// `merl_nbrdf_materials.txt` beside it) or from the directory holding both.
+pub fn load_nbrdf_library(path: &Path) -> std::result::Result<NbrdfLibrary, String> {
+    if path.is_dir() {
+        return NbrdfLibrary::load(path).map_err(|e| e.to_string());
+    }
+    let weights = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let names_path = path
+        .parent()
+        .unwrap_or_else(|| Path::new("."))
+        .join(NAMES_FILE);
+    let names = std::fs::read_to_string(&names_path)
+        .map_err(|e| format!("{}: {e}", names_path.display()))?;
+    NbrdfLibrary::from_bytes(&weights, &names, path).map_err(|e| e.to_string())
+}
+
+/// Load the material `spec` names. `nbrdf_weights` overrides where
+/// Neural-BRDF weights are read from (see [`nbrdf_weights_path`]).
+pub fn load_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Result<Material> {
+    let (brdf, rgl): (Arc<dyn Brdf>, Option<Arc<RglBrdf>>) = match spec {
+        MaterialSpec::Builtin(name) => (
+            acdf_materials::builtin(name).map_err(|e| Error::UnknownMaterial {
+                spec: spec.to_string(),
+                reason: e.to_string(),
+            })?,
+            None,
+        ),
+        MaterialSpec::Merl(path) => (
+            Arc::new(MerlTable::read(path).map_err(|e| material_error(spec, e))?),
+            None,
+        ),
+        MaterialSpec::Rgl(path) => {
+            let rgl = Arc::new(RglBrdf::open(path).map_err(|e| material_error(spec, e))?);
+            (rgl.clone(), Some(rgl))
+        }
+        MaterialSpec::Nbrdf(name) => {
+            let path = nbrdf_weights_path(nbrdf_weights).ok_or_else(|| {
+                material_error(
+                    spec,
+                    format!(
+                        "no Neural-BRDF weights: pass --nbrdf-weights or put {DEFAULT_NBRDF_WEIGHTS} in place"
+                    ),
+                )
+            })?;
+            let library = load_nbrdf_library(&path).map_err(|e| material_error(spec, e))?;
+            let network = library.material(name).map_err(|e| Error::UnknownMaterial {
+                spec: spec.to_string(),
+                reason: e.to_string(),
+            })?;
+            (Arc::new(network), None)
+        }
+    };
+    Ok(Material {
+        spec: spec.clone(),
+        brdf,
+        rgl,
+    })
+}
+
+/// Bake a material into a MERL table: Neural-BRDF networks are evaluated at
+/// the exact grid angles, every other BRDF is tabulated with the MERL rule
+/// that marks grid points below the horizon unmeasured.
+pub fn bake_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Result<MerlTable> {
+    if let MaterialSpec::Nbrdf(name) = spec {
+        let path = nbrdf_weights_path(nbrdf_weights)
+            .ok_or_else(|| material_error(spec, "no Neural-BRDF weights: pass --nbrdf-weights"))?;
+        let library = load_nbrdf_library(&path).map_err(|e| material_error(spec, e))?;
+        let network = library.material(name).map_err(|e| Error::UnknownMaterial {
+            spec: spec.to_string(),
+            reason: e.to_string(),
+        })?;
+        return Ok(network.bake());
+    }
+    let material = load_material(spec, nbrdf_weights)?;
+    Ok(acdf_materials::nbrdf::bake(material.brdf.as_ref()))
+}
+
+/// Write a baked table, mapping errors to the facade's.
+pub fn write_merl(table: &MerlTable, path: &Path) -> Result<()> {
+    table.write(path).map_err(|e| Error::Material {
+        spec: path.display().to_string(),
+        message: e.to_string().replace('\n', " "),
+    })
+}

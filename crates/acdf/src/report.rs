@@ -1,0 +1,249 @@
+//! The results table: for one material, every sampler's storage, the
+//! compression against the uniform tabulation, and its estimator efficiency
+//! (see [`efficiency`](crate::efficiency)), absolute and relative to the
+//! uniform sampler.
+
+use std::time::Instant;
+
+use acdf_core::BxdfSampler;
+use serde::Serialize;
+
+use crate::efficiency::{measure_efficiency, Efficiency, EfficiencyConfig};
+use crate::env::Environment;
+use crate::error::Result;
+use crate::material::Material;
+use crate::registry::{make_sampler_spec, report_samplers, SamplerOptions};
+use crate::spec::SamplerSpec;
+
+/// One (material, sampler) line of the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReportRow {
+    /// The material's short name.
+    pub material: String,
+    /// The sampler's command-line name.
+    pub sampler: String,
+    /// θ_o×φ_o×θ_h×φ_h for the uniform sampler, θ_o×φ_o× mean kept marginal
+    /// × mean kept conditional vertices for adaptive ones.
+    pub resolution: String,
+    /// Heap bytes of the sampler's tables, all slices built.
+    pub storage_bytes: usize,
+    /// storage(uniform) / storage(sampler); `null` for a sampler without
+    /// tables.
+    pub compression_ratio: Option<f64>,
+    /// Seconds to build every table (in parallel).
+    pub build_seconds: f64,
+    /// The estimate of the mean reflected luminance (a consistency check:
+    /// unbiased samplers agree within a few `estimate_se`).
+    pub estimate: f64,
+    pub estimate_se: f64,
+    /// V, the per-direction variance of the one-sample estimator, averaged.
+    pub variance: f64,
+    /// Relative standard error of `variance`.
+    pub variance_rel_se: f64,
+    /// Draws behind `variance`.
+    pub samples: usize,
+    /// t = t_sample + v (t_eval + t_pdf).
+    pub seconds_per_sample: f64,
+    pub seconds_per_draw: f64,
+    pub seconds_per_pdf: f64,
+    pub seconds_per_eval: f64,
+    /// 1 / (V t); `null` if V is 0.
+    pub efficiency: Option<f64>,
+    /// efficiency / efficiency(uniform).
+    pub relative_efficiency: Option<f64>,
+}
+
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}
+
+/// A measured sampler, before it is compared with the uniform one.
+struct Measured {
+    spec: SamplerSpec,
+    name: String,
+    resolution: String,
+    storage_bytes: usize,
+    build_seconds: f64,
+    efficiency: Efficiency,
+}
+
+/// Measure every sampler of [`report_samplers`] on `material`. `progress` is
+/// called with each sampler's name before it is measured.
+pub fn report_material(
+    material: &Material,
+    env: &dyn Environment,
+    options: &SamplerOptions,
+    config: &EfficiencyConfig,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<ReportRow>> {
+    let mut measured = Vec::new();
+    for spec in report_samplers(material) {
+        progress(&spec.to_string());
+        let sampler = make_sampler_spec(spec, material, options)?;
+        let start = Instant::now();
+        sampler.build_all()?;
+        let build_seconds = start.elapsed().as_secs_f64();
+        let efficiency = measure_efficiency(material.brdf.as_ref(), &sampler, env, config);
+        measured.push(Measured {
+            spec,
+            name: spec.to_string(),
+            resolution: sampler.resolution_label(),
+            storage_bytes: sampler.storage_bytes(),
+            build_seconds,
+            efficiency,
+        });
+    }
+    let uniform = measured.iter().find(|m| m.spec == SamplerSpec::Uniform);
+    let uniform_storage = uniform.map(|m| m.storage_bytes as f64);
+    let uniform_eff = uniform.map(|m| m.efficiency.efficiency);
+    let label = material.label();
+    Ok(measured
+        .iter()
+        .map(|m| {
+            let e = &m.efficiency;
+            ReportRow {
+                material: label.clone(),
+                sampler: m.name.clone(),
+                resolution: m.resolution.clone(),
+                storage_bytes: m.storage_bytes,
+                compression_ratio: match (uniform_storage, m.storage_bytes) {
+                    (Some(u), s) if s > 0 => Some(u / s as f64),
+                    _ => None,
+                },
+                build_seconds: m.build_seconds,
+                estimate: e.estimate,
+                estimate_se: e.estimate_se,
+                variance: e.variance,
+                variance_rel_se: e.variance_rel_se,
+                samples: e.samples,
+                seconds_per_sample: e.seconds_per_sample,
+                seconds_per_draw: e.timing.seconds_per_draw,
+                seconds_per_pdf: e.timing.seconds_per_pdf,
+                seconds_per_eval: e.timing.seconds_per_eval,
+                efficiency: finite(e.efficiency),
+                relative_efficiency: uniform_eff.and_then(|u| finite(e.efficiency / u)),
+            }
+        })
+        .collect())
+}
+
+/// Bytes in a human unit (KiB, MiB).
+pub fn human_bytes(bytes: usize) -> String {
+    let b = bytes as f64;
+    if b >= 1024.0 * 1024.0 {
+        format!("{:.2} MiB", b / (1024.0 * 1024.0))
+    } else if b >= 1024.0 {
+        format!("{:.1} KiB", b / 1024.0)
+    } else {
+        format!("{bytes} B")
+    }
+}
+
+fn opt(x: Option<f64>, f: impl Fn(f64) -> String) -> String {
+    x.map(f).unwrap_or_else(|| "-".to_string())
+}
+
+/// The rows as a Markdown table.
+pub fn format_table(rows: &[ReportRow]) -> String {
+    let header = [
+        "material",
+        "sampler",
+        "resolution",
+        "storage",
+        "compression",
+        "estimate",
+        "variance (±rel)",
+        "ns/sample",
+        "efficiency (1/s)",
+        "rel. eff.",
+    ];
+    let body: Vec<[String; 10]> = rows
+        .iter()
+        .map(|r| {
+            [
+                r.material.clone(),
+                r.sampler.clone(),
+                r.resolution.clone(),
+                human_bytes(r.storage_bytes),
+                opt(r.compression_ratio, |c| format!("{c:.1}x")),
+                format!("{:.4}", r.estimate),
+                format!("{:.4e} (±{:.0}%)", r.variance, 100.0 * r.variance_rel_se),
+                format!("{:.0}", r.seconds_per_sample * 1e9),
+                opt(r.efficiency, |e| format!("{e:.3e}")),
+                opt(r.relative_efficiency, |e| format!("{e:.2}")),
+            ]
+        })
+        .collect();
+    let mut widths: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
+    for row in &body {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.chars().count());
+        }
+    }
+    let line = |cells: Vec<&str>| -> String {
+        let padded: Vec<String> = cells
+            .iter()
+            .zip(&widths)
+            .enumerate()
+            .map(|(i, (c, &w))| {
+                // Text columns left-aligned, numbers right-aligned.
+                if i < 3 {
+                    format!("{c:<w$}")
+                } else {
+                    format!("{c:>w$}")
+                }
+            })
+            .collect();
+        format!("| {} |\n", padded.join(" | "))
+    };
+    let mut out = line(header.to_vec());
+    out.push_str(&format!(
+        "|{}|\n",
+        widths
+            .iter()
+            .enumerate()
+            .map(|(i, &w)| if i < 3 {
+                format!(":{}", "-".repeat(w + 1))
+            } else {
+                format!("{}:", "-".repeat(w + 1))
+            })
+            .collect::<Vec<_>>()
+            .join("|")
+    ));
+    for row in &body {
+        out.push_str(&line(row.iter().map(String::as_str).collect()));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_has_a_line_per_row() {
+        let row = ReportRow {
+            material: "m".into(),
+            sampler: "cosine".into(),
+            resolution: "-".into(),
+            storage_bytes: 0,
+            compression_ratio: None,
+            build_seconds: 0.0,
+            estimate: 1.0,
+            estimate_se: 0.0,
+            variance: 2.0,
+            variance_rel_se: 0.01,
+            samples: 10,
+            seconds_per_sample: 1e-8,
+            seconds_per_draw: 1e-8,
+            seconds_per_pdf: 0.0,
+            seconds_per_eval: 0.0,
+            efficiency: Some(5e7),
+            relative_efficiency: None,
+        };
+        let t = format_table(&[row.clone(), row]);
+        assert_eq!(t.lines().count(), 4);
+        assert!(t.contains("cosine") && t.contains("5.000e7"));
+        assert_eq!(human_bytes(2048), "2.0 KiB");
+    }
+}

@@ -1,0 +1,755 @@
+//! End-to-end tests of the `acdf` command: every subcommand on a built-in
+//! material with small sizes, checking what it prints and writes, and the
+//! error paths (one line on stderr, non-zero exit, no panic).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn acdf(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_acdf"))
+        .args(args)
+        .output()
+        .expect("the acdf binary runs")
+}
+
+fn acdf_stdin(args: &[&str], input: &str) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_acdf"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the acdf binary runs");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    child.wait_with_output().unwrap()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8(o.stdout.clone()).unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8(o.stderr.clone()).unwrap()
+}
+
+fn assert_ok(o: &Output) {
+    assert!(o.status.success(), "failed: {}", stderr(o));
+}
+
+/// The command failed with exactly one line on stderr and no panic.
+fn assert_one_line_error(o: &Output, needle: &str) {
+    assert!(!o.status.success(), "unexpectedly succeeded");
+    let err = stderr(o);
+    assert_eq!(err.lines().count(), 1, "stderr: {err}");
+    assert!(err.contains(needle), "stderr `{err}` lacks `{needle}`");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+fn shared_data() -> Option<PathBuf> {
+    let d = acdf::materials::shared_data_dir();
+    if d.is_none() {
+        println!("skipping: no shared data directory (set ACDF_SHARED_DATA)");
+    }
+    d
+}
+
+fn parse_floats(line: &str) -> Vec<f64> {
+    line.split(',').map(|f| f.parse().unwrap()).collect()
+}
+
+#[test]
+fn every_subcommand_has_help() {
+    for sub in ["sample", "pdf", "eval", "bake", "report", "sweep", "render"] {
+        let o = acdf(&[sub, "--help"]);
+        assert_ok(&o);
+        assert!(stdout(&o).contains("Usage"), "{sub}");
+    }
+}
+
+#[test]
+fn sample_prints_header_and_one_row_per_draw() {
+    let o = acdf(&[
+        "sample",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "adaptive:vw",
+        "--wo",
+        "30,45",
+        "--n",
+        "200",
+        "--seed",
+        "3",
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    let mut lines = out.lines();
+    assert_eq!(lines.next(), Some("wi_x,wi_y,wi_z,pdf,valid"));
+    let rows: Vec<Vec<f64>> = lines.map(parse_floats).collect();
+    assert_eq!(rows.len(), 200);
+    let mut valid = 0;
+    for r in &rows {
+        assert_eq!(r.len(), 5);
+        if r[4] == 1.0 {
+            valid += 1;
+            let len = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+            assert!(
+                (len - 1.0).abs() < 1e-4 && r[2] > 0.0 && r[3] > 0.0,
+                "{r:?}"
+            );
+        } else {
+            assert_eq!(r, &vec![0.0; 5]);
+        }
+    }
+    assert!(valid > 150, "only {valid} valid draws");
+    // The same seed gives the same draws.
+    let again = acdf(&[
+        "sample",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "adaptive:vw",
+        "--wo",
+        "30,45",
+        "--n",
+        "200",
+        "--seed",
+        "3",
+    ]);
+    assert_eq!(stdout(&again), out);
+}
+
+/// The cosine sampler's pdf is cos θ_i / π, on every row.
+#[test]
+fn cosine_rows_have_the_cosine_density() {
+    let o = acdf(&[
+        "sample",
+        "--material",
+        "builtin:lambert",
+        "--sampler",
+        "cosine",
+        "--wo",
+        "10,0",
+        "--n",
+        "50",
+    ]);
+    assert_ok(&o);
+    for line in stdout(&o).lines().skip(1) {
+        let r = parse_floats(line);
+        if r[4] == 1.0 {
+            assert!((r[3] - r[2] / std::f64::consts::PI).abs() < 1e-5, "{line}");
+        }
+    }
+}
+
+/// `pdf` reads `sample`'s own output and gives back the densities it drew
+/// with: sampling and density evaluation agree through the command line.
+#[test]
+fn pdf_of_sampled_directions_matches_the_sampled_pdf() {
+    let args = [
+        "--material",
+        "builtin:gray-plastic",
+        "--sampler",
+        "uniform",
+        "--wo",
+        "40,10",
+    ];
+    let mut sample_args = vec!["sample"];
+    sample_args.extend(args);
+    sample_args.extend(["--n", "100"]);
+    let s = acdf(&sample_args);
+    assert_ok(&s);
+    let csv = stdout(&s);
+    let mut pdf_args = vec!["pdf"];
+    pdf_args.extend(args);
+    let p = acdf_stdin(&pdf_args, &csv);
+    assert_ok(&p);
+    let pdfs: Vec<f64> = stdout(&p).lines().map(|l| l.parse().unwrap()).collect();
+    let rows: Vec<Vec<f64>> = csv.lines().skip(1).map(parse_floats).collect();
+    assert_eq!(pdfs.len(), rows.len());
+    for (row, pdf) in rows.iter().zip(&pdfs) {
+        if row[4] == 1.0 {
+            assert!(
+                (row[3] - pdf).abs() <= 1e-3 * row[3].max(1.0),
+                "{row:?} vs {pdf}"
+            );
+        } else {
+            assert_eq!(*pdf, 0.0);
+        }
+    }
+}
+
+#[test]
+fn eval_prints_rgb_per_line() {
+    let o = acdf_stdin(
+        &["eval", "--material", "builtin:lambert", "--wo", "20,0"],
+        "0,0,1\n0.5,0.5,0.7\n\n# comment\n0,0,-1\n",
+    );
+    assert_ok(&o);
+    let lines: Vec<Vec<f64>> = stdout(&o).lines().map(parse_floats).collect();
+    assert_eq!(lines.len(), 3);
+    assert_eq!(lines[0], lines[1], "a Lambertian BRDF is constant");
+    assert!(lines[0].iter().all(|&c| c > 0.0));
+    assert_eq!(lines[2], vec![0.0; 3], "below the horizon");
+}
+
+#[test]
+fn malformed_stdin_is_one_line_error() {
+    let o = acdf_stdin(
+        &[
+            "pdf",
+            "--material",
+            "builtin:lambert",
+            "--sampler",
+            "cosine",
+            "--wo",
+            "20,0",
+        ],
+        "0,0,1\n1,banana,2\n",
+    );
+    assert_one_line_error(&o, "line 2");
+}
+
+#[test]
+fn unknown_names_and_missing_files_are_one_line_errors() {
+    let base = ["sample", "--wo", "30,0", "--n", "3"];
+    let run = |extra: &[&str]| {
+        let mut a = base.to_vec();
+        a.extend(extra);
+        acdf(&a)
+    };
+    assert_one_line_error(
+        &run(&["--material", "builtin:nickel", "--sampler", "bogus"]),
+        "unknown sampler `bogus`",
+    );
+    assert_one_line_error(
+        &run(&["--material", "builtin:unobtainium"]),
+        "unknown material",
+    );
+    assert_one_line_error(&run(&["--material", "chrome"]), "unknown material");
+    assert_one_line_error(
+        &run(&["--material", "/nonexistent/x.binary"]),
+        "/nonexistent/x.binary",
+    );
+    assert_one_line_error(
+        &run(&["--material", "/nonexistent/x.bsdf"]),
+        "/nonexistent/x.bsdf",
+    );
+    assert_one_line_error(
+        &run(&["--material", "builtin:nickel", "--sampler", "rgl"]),
+        "needs an RGL .bsdf",
+    );
+    assert_one_line_error(
+        &run(&["--material", "builtin:nickel", "--resolution", "32x1x0x32"]),
+        "resolution",
+    );
+    let bad_wo = acdf(&["sample", "--material", "builtin:nickel", "--wo", "95,0"]);
+    assert_one_line_error(&bad_wo, "direction");
+    let report = acdf(&[
+        "report",
+        "--material",
+        "builtin:nickel",
+        "--material",
+        "nope.txt",
+    ]);
+    assert_one_line_error(&report, "unknown material `nope.txt`");
+}
+
+#[test]
+fn truncated_merl_file_is_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cut.binary");
+    std::fs::write(&path, [90u8, 0, 0, 0, 90, 0]).unwrap();
+    let o = acdf(&["eval", "--material", path.to_str().unwrap(), "--wo", "10,0"]);
+    assert_one_line_error(&o, "cut.binary");
+}
+
+/// `bake` writes a MERL file that `eval` reads back: for a Lambertian
+/// material the table holds the constant albedo / π.
+#[test]
+fn bake_round_trips_through_eval() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("lambert.binary");
+    let p = path.to_str().unwrap();
+    let o = acdf(&["bake", "--material", "builtin:lambert", "--out", p]);
+    assert_ok(&o);
+    assert_eq!(
+        std::fs::metadata(&path).unwrap().len(),
+        12 + 3 * 90 * 90 * 180 * 8
+    );
+    let input = "0,0,1\n0.3,0.2,0.9\n";
+    let baked = acdf_stdin(&["eval", "--material", p, "--wo", "30,0"], input);
+    let direct = acdf_stdin(
+        &["eval", "--material", "builtin:lambert", "--wo", "30,0"],
+        input,
+    );
+    assert_ok(&baked);
+    for (a, b) in stdout(&baked).lines().zip(stdout(&direct).lines()) {
+        for (x, y) in parse_floats(a).iter().zip(parse_floats(b)) {
+            assert!((x - y).abs() < 1e-4 * y.max(1e-3), "{a} vs {b}");
+        }
+    }
+}
+
+#[test]
+fn bake_a_neural_brdf_when_the_data_is_there() {
+    let Some(data) = shared_data() else { return };
+    let weights = data.join("merl-neural-brdf/merl_nbrdf_weights.f32");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("nickel.binary");
+    let o = acdf(&[
+        "bake",
+        "--material",
+        "nbrdf:nickel",
+        "--nbrdf-weights",
+        weights.to_str().unwrap(),
+        "--out",
+        path.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let e = acdf_stdin(
+        &["eval", "--material", path.to_str().unwrap(), "--wo", "30,0"],
+        "0.5,0,0.866\n",
+    );
+    assert_ok(&e);
+    let rgb = parse_floats(stdout(&e).trim());
+    assert!(rgb.iter().all(|&c| c > 0.0 && c.is_finite()), "{rgb:?}");
+    let unknown = acdf(&[
+        "bake",
+        "--material",
+        "nbrdf:unobtainium",
+        "--nbrdf-weights",
+        weights.to_str().unwrap(),
+        "--out",
+        path.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&unknown, "unknown material");
+}
+
+#[test]
+fn rgl_sampler_on_a_bsdf_file_when_the_data_is_there() {
+    let Some(data) = shared_data() else { return };
+    let file = data.join("rgl-material-database/paper_white_rgb.bsdf");
+    let o = acdf(&[
+        "sample",
+        "--material",
+        file.to_str().unwrap(),
+        "--sampler",
+        "rgl",
+        "--wo",
+        "30,0",
+        "--n",
+        "20",
+    ]);
+    assert_ok(&o);
+    assert_eq!(stdout(&o).lines().count(), 21);
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn report_prints_a_table_and_writes_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("report.json");
+    let o = acdf(&[
+        "report",
+        "--material",
+        "builtin:gray-plastic",
+        "--samples",
+        "2048",
+        "--timing-samples",
+        "64",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("12 outgoing directions x 2048 draws"), "{out}");
+    for s in [
+        "uniform",
+        "adaptive:dp",
+        "adaptive:vw",
+        "adaptive:rw",
+        "adaptive:optimal",
+        "adaptive:chi2",
+        "cosine",
+    ] {
+        assert!(
+            out.lines()
+                .any(|l| l.contains("gray-plastic") && l.contains(s)),
+            "{s}"
+        );
+    }
+    let rows = read_json(&json);
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 7);
+    for r in rows {
+        for key in [
+            "material",
+            "sampler",
+            "storage_bytes",
+            "compression_ratio",
+            "variance",
+            "seconds_per_sample",
+            "efficiency",
+        ] {
+            assert!(r.get(key).is_some(), "missing {key} in {r}");
+        }
+        assert_eq!(r["material"], "gray-plastic");
+        assert!(r["variance"].as_f64().unwrap() > 0.0);
+        assert!(r["seconds_per_sample"].as_f64().unwrap() > 0.0);
+    }
+    let uniform = &rows[0];
+    assert_eq!(uniform["sampler"], "uniform");
+    assert_eq!(uniform["compression_ratio"].as_f64(), Some(1.0));
+    // Every adaptive sampler stores less than the uniform one.
+    for r in &rows[1..5] {
+        assert!(r["compression_ratio"].as_f64().unwrap() > 1.0, "{r}");
+    }
+    // All samplers estimate the same reflected luminance (4 standard errors).
+    let e0 = uniform["estimate"].as_f64().unwrap();
+    for r in rows {
+        let (e, se) = (
+            r["estimate"].as_f64().unwrap(),
+            r["estimate_se"].as_f64().unwrap(),
+        );
+        let se0 = uniform["estimate_se"].as_f64().unwrap();
+        assert!((e - e0).abs() < 4.0 * (se * se + se0 * se0).sqrt(), "{r}");
+    }
+}
+
+#[test]
+fn sweep_writes_csv_json_svg_and_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = acdf(&[
+        "sweep",
+        "--material",
+        "builtin:nickel",
+        "--simplifiers",
+        "dp,optimal",
+        "--tolerances",
+        "0.005,0.04",
+        "--samples",
+        "512",
+        "--timing-samples",
+        "32",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    let mut lines = out.lines();
+    assert!(lines
+        .next()
+        .unwrap()
+        .starts_with("material,sampler,tolerance,storage_bytes"));
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 2 + 2 * 2);
+    assert!(rows[0].starts_with("nickel,uniform,"));
+    assert!(rows[1].starts_with("nickel,cosine,"));
+    let csv = std::fs::read_to_string(dir.path().join("sweep-nickel.csv")).unwrap();
+    assert_eq!(csv, out);
+    let json = read_json(&dir.path().join("sweep-nickel.json"));
+    let points = json.as_array().unwrap();
+    assert_eq!(points.len(), 6);
+    // A looser tolerance keeps fewer vertices, so it stores less.
+    let dp: Vec<u64> = points
+        .iter()
+        .filter(|p| p["sampler"] == "adaptive:dp")
+        .map(|p| p["storage_bytes"].as_u64().unwrap())
+        .collect();
+    assert!(dp[0] > dp[1], "{dp:?}");
+    let svg = std::fs::read_to_string(dir.path().join("sweep-nickel.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("adaptive:dp"));
+    let png = image::open(dir.path().join("sweep-nickel.png")).unwrap();
+    assert!(png.width() > 100 && png.height() > 100);
+}
+
+#[test]
+fn render_writes_decodable_pngs_and_prints_rmse() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:blue-metallic-paint",
+        "--width",
+        "24",
+        "--spp",
+        "2",
+        "--ref-spp",
+        "8",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(
+        out.contains("sampler,spp,seconds,rmse,rmse_vs_uniform"),
+        "{out}"
+    );
+    for s in ["cosine", "uniform", "adaptive:dp"] {
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(&format!("{s},")))
+            .unwrap();
+        let rmse: f64 = line.split(',').nth(3).unwrap().parse().unwrap();
+        assert!(rmse.is_finite() && rmse > 0.0, "{line}");
+    }
+    for name in ["reference", "cosine", "uniform", "adaptive-dp"] {
+        let img = image::open(dir.path().join(format!("blue-metallic-paint-{name}.png"))).unwrap();
+        assert_eq!((img.width(), img.height()), (24, 24), "{name}");
+    }
+    let side = image::open(dir.path().join("blue-metallic-paint-side-by-side.png")).unwrap();
+    assert_eq!(side.width(), 4 * 24 + 3 * 4);
+}
+
+#[test]
+fn render_equal_time_runs_at_least_one_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--samplers",
+        "cosine",
+        "--width",
+        "8",
+        "--ref-spp",
+        "2",
+        "--equal-time",
+        "--seconds",
+        "0.05",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("equal time"), "{out}");
+    let line = out.lines().find(|l| l.starts_with("cosine,")).unwrap();
+    let spp: usize = line.split(',').nth(1).unwrap().parse().unwrap();
+    assert!(spp >= 1);
+}
+
+#[test]
+fn render_rejects_a_missing_envmap() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--envmap",
+        "/nonexistent/sky.exr",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "/nonexistent/sky.exr");
+}
+
+/// A latitude-longitude map written as Radiance `.hdr` lights the sphere:
+/// a white map makes a white-furnace image whose sphere pixels are all the
+/// same grey under cosine sampling of a Lambertian material.
+#[test]
+fn render_reads_an_hdr_envmap() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = dir.path().join("white.hdr");
+    let img = image::Rgb32FImage::from_pixel(16, 8, image::Rgb([1.0, 1.0, 1.0]));
+    image::DynamicImage::ImageRgb32F(img).save(&map).unwrap();
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--samplers",
+        "cosine",
+        "--reference-sampler",
+        "cosine",
+        "--width",
+        "16",
+        "--spp",
+        "2",
+        "--ref-spp",
+        "2",
+        "--envmap",
+        map.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("environment map"));
+    let line = stdout(&o)
+        .lines()
+        .find(|l| l.starts_with("cosine,"))
+        .unwrap()
+        .to_string();
+    let rmse: f64 = line.split(',').nth(3).unwrap().parse().unwrap();
+    assert!(rmse < 1e-5, "{line}");
+    let bad = dir.path().join("bad.exr");
+    std::fs::write(&bad, b"not an exr").unwrap();
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--envmap",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "bad.exr");
+}
+
+/// `acdf build` writes a sampler file; `--sampler-file` loads it and samples
+/// exactly as the freshly built sampler does; a file of another material, a
+/// truncated file and a sampler without tables are one-line errors.
+#[test]
+fn build_then_sample_from_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("nickel.acdfs");
+    let file_s = file.to_str().unwrap();
+    let tables = ["--resolution", "8x1x32x16"];
+    let mut args = vec![
+        "build",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "adaptive:optimal",
+    ];
+    args.extend(tables);
+    args.extend(["--out", file_s]);
+    let o = acdf(&args);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("loaded in"), "{}", stdout(&o));
+    assert!(file.metadata().unwrap().len() > 0);
+
+    let draw = ["--wo", "40,10", "--n", "200", "--seed", "5"];
+    let mut from_file = vec![
+        "sample",
+        "--material",
+        "builtin:nickel",
+        "--sampler-file",
+        file_s,
+    ];
+    from_file.extend(draw);
+    let mut fresh = vec![
+        "sample",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "adaptive:optimal",
+    ];
+    fresh.extend(tables);
+    fresh.extend(draw);
+    let (a, b) = (acdf(&from_file), acdf(&fresh));
+    assert_ok(&a);
+    assert_eq!(stdout(&a), stdout(&b));
+    assert_eq!(stdout(&a).lines().count(), 201);
+
+    let mut wrong = vec![
+        "sample",
+        "--material",
+        "builtin:lambert",
+        "--sampler-file",
+        file_s,
+    ];
+    wrong.extend(draw);
+    assert_one_line_error(&acdf(&wrong), "built for material `nickel`");
+
+    let bytes = std::fs::read(&file).unwrap();
+    let cut = dir.path().join("cut.acdfs");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let mut truncated = vec!["sample", "--material", "builtin:nickel", "--sampler-file"];
+    truncated.push(cut.to_str().unwrap());
+    truncated.extend(draw);
+    assert_one_line_error(&acdf(&truncated), "truncated");
+
+    let o = acdf(&[
+        "build",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "cosine",
+        "--out",
+        file_s,
+    ]);
+    assert_one_line_error(&o, "only tabulated samplers");
+}
+
+#[test]
+fn bench_prints_a_table_and_writes_documented_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("bench.json");
+    let o = acdf(&[
+        "bench",
+        "--samples",
+        "3000",
+        "--repeats",
+        "1",
+        "--build-resolution",
+        "2x2x16x8",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    for needle in [
+        "piecewise_constant_2d",
+        "adaptive_2d",
+        "uniform",
+        "adaptive:dp",
+    ] {
+        assert!(out.contains(needle), "{needle} missing from\n{out}");
+    }
+    let v = read_json(&json);
+    assert_eq!(v["material"], "nickel");
+    assert_eq!(v["samples"], 3000);
+    let positive = |x: &serde_json::Value| x.as_f64().is_some_and(|x| x.is_finite() && x > 0.0);
+    let distributions = v["distributions"].as_array().unwrap();
+    assert_eq!(distributions.len(), 2);
+    for d in distributions {
+        assert_eq!((d["nx"].as_u64(), d["ny"].as_u64()), (Some(32), Some(256)));
+        for field in [
+            "samples_per_second_one_thread",
+            "samples_per_second_all_threads",
+            "storage_bytes",
+        ] {
+            assert!(positive(&d[field]), "{field}: {d}");
+        }
+    }
+    // The adaptive slice is smaller than the uniform one.
+    assert!(
+        distributions[1]["storage_bytes"].as_u64() < distributions[0]["storage_bytes"].as_u64()
+    );
+    let samplers = v["samplers"].as_array().unwrap();
+    assert_eq!(samplers.len(), 2);
+    for s in samplers {
+        assert_eq!(s["resolution"], "32x1x256x32");
+        for field in [
+            "sample_per_second",
+            "sample_batch_per_second",
+            "pdf_per_second",
+            "storage_bytes",
+        ] {
+            assert!(positive(&s[field]), "{field}: {s}");
+        }
+    }
+    let builds = v["builds"].as_array().unwrap();
+    assert_eq!(builds.len(), 2);
+    for b in builds {
+        assert_eq!(b["resolution"], "2x2x16x8");
+        assert!(
+            positive(&b["seconds"]) && positive(&b["storage_bytes"]),
+            "{b}"
+        );
+    }
+
+    let o = acdf(&["bench", "--build-resolution", "2x0x16x8"]);
+    assert_one_line_error(&o, "build resolution");
+    let o = acdf(&["bench", "--material", "no-such-material", "--samples", "10"]);
+    assert_one_line_error(&o, "no-such-material");
+}

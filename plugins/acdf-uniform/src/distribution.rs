@@ -1,0 +1,1090 @@
+//! Piecewise-constant distributions over [0, 1) and [0, 1)^2 built from
+//! uniformly spaced tables.
+//!
+//! A table of `n` non-negative values f_k describes the step function
+//! f(x) = f_k for x in [k/n, (k+1)/n). Its cumulative distribution is stored
+//! at the right edge of every cell, P_k = (f_0 + ... + f_k) / (f_0 + ... +
+//! f_{n-1}), accumulated in `f64` and rounded once to `f32`; the value
+//! P_{-1} = 0 at x = 0 is implicit and not stored. Rounding is monotone, so
+//! the stored CDF is non-decreasing, and the last entry is exactly 1.
+//!
+//! **The density is defined by the stored CDF**, not by the original values:
+//! the density of cell k is p_k = n (P_k - P_{k-1}). That is exactly the
+//! density with which [`Distribution1D::sample`] maps a uniform `u` to `x`,
+//! so `sample`, `pdf` and `invert` agree to rounding, a cell is never drawn
+//! where `pdf` is zero, and a cell that `pdf` calls zero is never drawn. It
+//! differs from f_k / ∫f only by the `f32` rounding of the CDF (an absolute
+//! error of at most 2^-24 in a cell's probability).
+//!
+//! **Searching.** A draw finds its cell as the number of stored CDF entries
+//! at or below u. The 1D CDF and the 2D marginal keep a guide table (the
+//! cutpoint method: for each of n equal intervals of u, the range of cells
+//! it can land in), so the expected search is a single 8-wide SIMD compare;
+//! a 2D conditional of up to 64 cells is counted by comparing every entry.
+//! Both give exactly the cell of a binary search, so the mapping from u to
+//! x stays monotone. `sample_batch` runs eight draws in stages and, where
+//! the CPU has AVX2, is compiled for it; it returns the same samples as
+//! `sample`.
+//!
+//! **All-zero input.** A table (or a row of a 2D table) that sums to zero
+//! falls back to the uniform density; `integral()` then reports 0. In a 2D
+//! table a zero row gets a uniform conditional, but its marginal probability
+//! is 0 unless the whole table is zero, so it is never drawn.
+
+use crate::persist::{ByteReader, ByteWriter, Persist, PersistError};
+use acdf_core::{
+    clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
+    Vec2, ONE_MINUS_EPSILON,
+};
+
+/// The largest number of cells along one axis: beyond 2^24 neighbouring
+/// cell boundaries k/n are no longer distinct `f32` values.
+pub const MAX_CELLS: usize = 1 << 24;
+
+/// The number of entries of `cdf` that are `<= u`, for a non-decreasing
+/// `cdf`; see [`count_at_or_below_lanes`].
+#[inline(always)]
+fn count_at_or_below(cdf: &[f32], u: f32) -> usize {
+    count_at_or_below_lanes(cdf, [0], cdf.len(), [u])[0]
+}
+
+/// For each lane l, the number of entries of the non-decreasing window
+/// `data[offsets[l]..offsets[l] + len]` that are `<= u[l]`.
+///
+/// A 4-ary search without data-dependent branches: with the answer's last
+/// candidate `base` in [base, base + size), three pivots q, 2q, 3q ahead
+/// (q = size / 4) are compared, `base` moves by q times the number of
+/// pivots at or below u, and `size` shrinks by 3q, which keeps every
+/// candidate whatever the count. The loop depends only on `len`, so the
+/// lanes run in lockstep and their loads overlap instead of forming one
+/// chain of dependent loads per draw. The comparisons are summed as
+/// integers: a binary search's `if` (or `half * bool`) is compiled to a
+/// branch that mispredicts on half of the steps.
+#[inline(always)]
+fn count_at_or_below_lanes<const L: usize>(
+    data: &[f32],
+    offsets: [usize; L],
+    len: usize,
+    u: [f32; L],
+) -> [usize; L] {
+    if len == 0 {
+        return [0; L];
+    }
+    let at_or_below = |i: usize, u: f32| (data[i] <= u) as usize;
+    let mut base = offsets;
+    let mut size = len;
+    while size >= 4 {
+        let q = size / 4;
+        for (b, &u) in base.iter_mut().zip(&u) {
+            let count =
+                at_or_below(*b + q, u) + at_or_below(*b + 2 * q, u) + at_or_below(*b + 3 * q, u);
+            *b += q * count;
+        }
+        size -= 3 * q;
+    }
+    // size is now 1, 2 or 3: step over the remaining candidates one by one.
+    for ((b, &u), &offset) in base.iter_mut().zip(&u).zip(&offsets) {
+        let mut count = at_or_below(*b, u);
+        if size >= 2 {
+            count += at_or_below(*b + 1, u);
+        }
+        if size >= 3 {
+            count += at_or_below(*b + 2, u);
+        }
+        *b = *b - offset + count;
+    }
+    base
+}
+
+/// The cutpoint index (guide table) of a stored CDF: for G = n equal
+/// intervals of u, the range of cells a `u` in interval g can land in, so
+/// that the search inspects a handful of entries instead of log n.
+///
+/// With cell(c) = min(floor(c G), G - 1) evaluated in `f32` (a monotone
+/// function of c), `lo[g]` is the number of searched entries c_k with
+/// cell(c_k) < g. For u with cell(u) = g every entry counted by `lo[g]` is
+/// below u and every entry from `lo[g + 1]` on is above it (monotonicity,
+/// whatever the rounding), so the count of entries `<= u` lies in
+/// [`lo[g]`, `lo[g + 1]`]: the mapping from u to the cell stays exactly the
+/// one of a plain search. It is derived from the CDF (rebuilt when a
+/// distribution is read back, never stored) and held as `u16`, so it is
+/// built for CDFs of at most 2^16 searched entries; longer ones are searched
+/// without it.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Guide {
+    /// G + 1 entries; empty when there is no guide.
+    lo: Vec<u16>,
+    /// G as `f32`.
+    scale: f32,
+}
+
+/// The widest guide interval searched with fixed, branch-free comparisons
+/// (one 8-wide SIMD compare).
+const GUIDE_WINDOW: usize = 8;
+
+impl Guide {
+    /// The guide of a stored CDF (all n entries, the last being 1; the
+    /// searched entries are the first n - 1).
+    fn new(cdf: &[f32]) -> Guide {
+        let searched = &cdf[..cdf.len().saturating_sub(1)];
+        let m = searched.len();
+        if m == 0 || m > u16::MAX as usize {
+            return Guide::default();
+        }
+        let g_count = cdf.len();
+        let mut guide = Guide {
+            lo: vec![0; g_count + 1],
+            scale: g_count as f32,
+        };
+        let mut k = 0;
+        for g in 0..=g_count {
+            while k < m && guide.cell(searched[k]) < g {
+                k += 1;
+            }
+            guide.lo[g] = k as u16;
+        }
+        guide
+    }
+
+    /// cell(u) = min(floor(u G), G - 1); `as u32` saturates NaN and
+    /// negatives to 0.
+    #[inline(always)]
+    fn cell(&self, u: f32) -> usize {
+        ((u * self.scale) as u32 as usize).min(self.lo.len() - 2)
+    }
+
+    /// Heap bytes of the index.
+    fn bytes(&self) -> usize {
+        self.lo.capacity() * std::mem::size_of::<u16>()
+    }
+
+    /// The number of entries of `cdf[..n - 1]` that are `<= u`, for the CDF
+    /// the guide was built from and u in [0, 1).
+    #[inline(always)]
+    fn count_at_or_below(&self, cdf: &[f32], u: f32) -> usize {
+        let n = cdf.len();
+        if self.lo.is_empty() {
+            return count_at_or_below(&cdf[..n - 1], u);
+        }
+        let g = self.cell(u);
+        let (a, b) = (self.lo[g] as usize, self.lo[g + 1] as usize);
+        if b - a <= GUIDE_WINDOW && n >= GUIDE_WINDOW {
+            // Count a fixed window of entries from a (moved left to stay
+            // inside the table): entries before a are below u and entries
+            // from b on (the last entry, 1, included) above it, so the count
+            // is exact; a fixed-size window compiles to SIMD compares.
+            let start = a.min(n - GUIDE_WINDOW);
+            let mut count = start;
+            for &c in &cdf[start..start + GUIDE_WINDOW] {
+                count += (c <= u) as usize;
+            }
+            count
+        } else {
+            a + count_at_or_below(&cdf[a..b], u)
+        }
+    }
+}
+
+/// The number of entries of `row` that are `<= u`, by comparing them all:
+/// for short rows (a conditional of 32 cells) the compiler turns this into
+/// a few SIMD compares, cheaper than any search's chain of dependent loads.
+#[inline(always)]
+fn count_linear(row: &[f32], u: f32) -> usize {
+    let mut chunks = row.chunks_exact(8);
+    let mut acc = [0u32; 8];
+    for c in &mut chunks {
+        for i in 0..8 {
+            acc[i] += (c[i] <= u) as u32;
+        }
+    }
+    let mut count: u32 = acc.iter().sum();
+    for &c in chunks.remainder() {
+        count += (c <= u) as u32;
+    }
+    count as usize
+}
+
+/// The longest conditional row searched by [`count_linear`].
+const LINEAR_ROW: usize = 64;
+
+/// The cell of x in a uniform grid of `n` cells over [0, 1): floor(x n),
+/// clamped to [0, n-1]; the one rule `sample` and `pdf` share. `nf` is n
+/// as `f32` (exact, since n <= [`MAX_CELLS`]).
+#[inline(always)]
+fn cell_of(x: f32, n: usize, nf: f32) -> usize {
+    // `as u32` saturates, so negative and NaN give 0.
+    ((x * nf) as u32 as usize).min(n - 1)
+}
+
+/// Fill `cdf` (length n) with the normalised running sums of `values`, in
+/// `f64`; returns the total. A zero total gives the uniform CDF (k+1)/n.
+fn build_cdf(values: impl Iterator<Item = f64>, cdf: &mut [f32]) -> f64 {
+    let n = cdf.len();
+    let mut running = Vec::with_capacity(n);
+    let mut total = 0.0f64;
+    for v in values {
+        total += v;
+        running.push(total);
+    }
+    fill_cdf(&running, total, cdf);
+    total
+}
+
+/// Normalise the running sums (the last of which is `total`) into `cdf`.
+fn fill_cdf(running: &[f64], total: f64, cdf: &mut [f32]) {
+    let n = cdf.len();
+    if total > 0.0 && total.is_finite() {
+        for (c, &r) in cdf.iter_mut().zip(running) {
+            *c = (r / total) as f32;
+        }
+    } else {
+        for (k, c) in cdf.iter_mut().enumerate() {
+            *c = ((k + 1) as f64 / n as f64) as f32;
+        }
+    }
+    // Exactly 1 whatever the rounding, so every u < 1 finds a cell.
+    cdf[n - 1] = 1.0;
+}
+
+/// P_{k-1}, the stored CDF at the left edge of cell k (0 for k = 0),
+/// without a branch: k = 0 is common (peaked tables put much of their mass
+/// in the first cell) and unpredictable.
+#[inline(always)]
+fn lower_edge(cdf: &[f32], k: usize) -> f32 {
+    // 1 when k != 0, from the top bit of k | -k.
+    let nonzero = (k | k.wrapping_neg()) >> (usize::BITS - 1);
+    let mask = (nonzero as u32).wrapping_neg();
+    f32::from_bits(cdf[k.saturating_sub(1)].to_bits() & mask)
+}
+
+/// Given the cell k with P_{k-1} <= u < P_k (found by a search over all but
+/// the last entry, which is 1 > u), the position `du` in [0, 1) of u inside
+/// it and the cell's probability P_k - P_{k-1} > 0.
+#[inline(always)]
+fn within_cell(cdf: &[f32], k: usize, u: f32) -> (f32, f32) {
+    let lower = lower_edge(cdf, k);
+    let mass = cdf[k] - lower;
+    let du = ((u - lower) / mass).clamp(0.0, ONE_MINUS_EPSILON);
+    (du, mass)
+}
+
+/// x = (k + du) / n, nudged by an ulp if rounding carried it out of cell k
+/// (so that `pdf(x)` finds the cell it was drawn from).
+#[inline(always)]
+fn position_in_cell(k: usize, du: f32, n: usize, nf: f32) -> f32 {
+    let mut x = ((k as u32 as f32 + du) * (1.0 / nf)).min(ONE_MINUS_EPSILON);
+    if cell_of(x, n, nf) == k {
+        return x;
+    }
+    // Rare: rounding put x on a boundary. A couple of ulps always suffice.
+    while cell_of(x, n, nf) > k {
+        x = x.next_down();
+    }
+    while cell_of(x, n, nf) < k {
+        x = x.next_up();
+    }
+    x
+}
+
+/// Reject an axis longer than [`MAX_CELLS`].
+fn check_cells(what: &'static str, n: usize) -> Result<()> {
+    if n > MAX_CELLS {
+        return Err(Error::InvalidParameter {
+            name: what,
+            reason: format!("{n} cells along one axis; at most {MAX_CELLS} are supported"),
+        });
+    }
+    Ok(())
+}
+
+/// The probability of cell k under a stored CDF.
+#[inline(always)]
+fn cell_mass(cdf: &[f32], k: usize) -> f32 {
+    cdf[k] - lower_edge(cdf, k)
+}
+
+/// P(x) for a stored CDF: the running probability up to cell floor(x n) plus
+/// the linear part inside it; x is clamped to [0, 1].
+#[inline]
+fn cdf_at(cdf: &[f32], x: f32) -> f32 {
+    let n = cdf.len();
+    if !(x > 0.0) {
+        return 0.0;
+    }
+    if x >= 1.0 {
+        return 1.0;
+    }
+    let nf = n as f32;
+    let k = cell_of(x, n, nf);
+    let lower = if k == 0 { 0.0 } else { cdf[k - 1] };
+    let t = (x * nf - k as f32).clamp(0.0, 1.0);
+    (lower + t * (cdf[k] - lower)).min(1.0)
+}
+
+/// A piecewise-constant density over [0, 1) from `n` uniform cells.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PiecewiseConstant1D {
+    cdf: Vec<f32>,
+    integral: f64,
+    /// Derived from `cdf`.
+    guide: Guide,
+}
+
+impl PiecewiseConstant1D {
+    /// Build from the cell values f_k; rejects empty tables, more than
+    /// [`MAX_CELLS`] cells and entries that are NaN, infinite or negative
+    /// (see [`validate_table`]). A table that sums to zero gives the uniform
+    /// density with `integral() == 0`.
+    pub fn new(values: &[f32]) -> Result<Self> {
+        check_cells("PiecewiseConstant1D cells", values.len())?;
+        validate_table("PiecewiseConstant1D", values)?;
+        let mut cdf = vec![0.0f32; values.len()];
+        let total = build_cdf(values.iter().map(|&v| v as f64), &mut cdf);
+        Ok(PiecewiseConstant1D {
+            integral: total / values.len() as f64,
+            guide: Guide::new(&cdf),
+            cdf,
+        })
+    }
+
+    /// The number of cells n.
+    pub fn count(&self) -> usize {
+        self.cdf.len()
+    }
+
+    /// The normalised CDF at the right edge of each cell: P_k = P((k+1)/n),
+    /// non-decreasing, the last entry exactly 1 (P(0) = 0 is implicit).
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
+    }
+
+    /// The normalised density of cell k, p_k = n (P_k - P_{k-1}); zero for
+    /// k >= n.
+    pub fn cell_pdf(&self, k: usize) -> f32 {
+        if k >= self.cdf.len() {
+            return 0.0;
+        }
+        cell_mass(&self.cdf, k) * self.cdf.len() as f32
+    }
+
+    /// The normalised density of every cell, p_k (allocates; for building
+    /// other distributions and for tests, not for sampling).
+    pub fn func(&self) -> Vec<f32> {
+        (0..self.count()).map(|k| self.cell_pdf(k)).collect()
+    }
+
+    /// The sample for a clamped `u` once its cell k is known.
+    #[inline(always)]
+    fn finish(&self, k: usize, u: f32) -> Sample1D {
+        let n = self.cdf.len();
+        let nf = n as f32;
+        let (du, mass) = within_cell(&self.cdf, k, u);
+        Sample1D {
+            x: position_in_cell(k, du, n, nf),
+            pdf: mass * nf,
+        }
+    }
+}
+
+impl Distribution1D for PiecewiseConstant1D {
+    /// x = (k + (u - P_{k-1}) / (P_k - P_{k-1})) / n for the cell k with
+    /// P_{k-1} <= u < P_k; density n (P_k - P_{k-1}) > 0.
+    #[inline]
+    fn sample(&self, u: f32) -> Sample1D {
+        let u = clamp_unit(u);
+        let k = self.guide.count_at_or_below(&self.cdf, u);
+        self.finish(k, u)
+    }
+
+    /// p(x) = n (P_k - P_{k-1}) with k = floor(x n); 0 outside [0, 1).
+    #[inline]
+    fn pdf(&self, x: f32) -> f32 {
+        if !(0.0..1.0).contains(&x) {
+            return 0.0;
+        }
+        let n = self.cdf.len();
+        let nf = n as f32;
+        cell_mass(&self.cdf, cell_of(x, n, nf)) * nf
+    }
+
+    /// P(x), piecewise linear between the stored CDF values.
+    fn invert(&self, x: f32) -> f32 {
+        cdf_at(&self.cdf, x)
+    }
+
+    /// ∫₀¹ f = (Σ f_k) / n, of the values given to [`new`](Self::new).
+    fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// The CDF and its guide table.
+    fn storage_bytes(&self) -> usize {
+        self.cdf.capacity() * std::mem::size_of::<f32>() + self.guide.bytes()
+    }
+
+    /// The same samples as [`sample`](Distribution1D::sample). The guided
+    /// search has no loop-carried dependence, so the out-of-order core
+    /// overlaps consecutive draws without explicit interleaving.
+    fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
+        for (o, &u) in out.iter_mut().zip(u) {
+            *o = self.sample(u);
+        }
+    }
+}
+
+/// A piecewise-constant density over [0, 1)^2 from a row-major table of
+/// `ny` rows of `nx` cells: a marginal CDF over the rows (y) and one
+/// conditional CDF over x per row, stored flat for locality.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PiecewiseConstant2D {
+    nx: usize,
+    ny: usize,
+    /// `ny` rows of `nx` entries: P(x < (k+1)/nx | row).
+    conditional: Vec<f32>,
+    /// `ny` entries: P(y < (j+1)/ny).
+    marginal: Vec<f32>,
+    integral: f64,
+    /// The guide of `marginal`, derived from it.
+    marginal_guide: Guide,
+}
+
+impl PiecewiseConstant2D {
+    /// Build from `values` (row-major, `ny` rows of `nx`); rejects zero
+    /// dimensions, a length other than nx·ny, and entries that are NaN,
+    /// infinite or negative. Zero rows and an all-zero table fall back to
+    /// uniform as described in the module documentation.
+    pub fn new(values: &[f32], nx: usize, ny: usize) -> Result<Self> {
+        const WHAT: &str = "PiecewiseConstant2D";
+        if nx == 0 || ny == 0 {
+            return Err(Error::EmptyTable { what: WHAT });
+        }
+        check_cells("PiecewiseConstant2D nx", nx)?;
+        check_cells("PiecewiseConstant2D ny", ny)?;
+        let expected = nx.checked_mul(ny).ok_or_else(|| Error::InvalidParameter {
+            name: "nx * ny",
+            reason: format!("{nx} x {ny} overflows"),
+        })?;
+        if values.len() != expected {
+            return Err(Error::SizeMismatch {
+                what: WHAT,
+                expected,
+                got: values.len(),
+            });
+        }
+        validate_table(WHAT, values)?;
+        let mut conditional = vec![0.0f32; expected];
+        let mut running = Vec::with_capacity(nx.max(ny));
+        let mut row_sums = Vec::with_capacity(ny);
+        for (row, cdf) in values
+            .chunks_exact(nx)
+            .zip(conditional.chunks_exact_mut(nx))
+        {
+            running.clear();
+            let mut total = 0.0f64;
+            for &v in row {
+                total += v as f64;
+                running.push(total);
+            }
+            fill_cdf(&running, total, cdf);
+            row_sums.push(total);
+        }
+        let mut marginal = vec![0.0f32; ny];
+        let total = build_cdf(row_sums.iter().copied(), &mut marginal);
+        Ok(PiecewiseConstant2D {
+            nx,
+            ny,
+            conditional,
+            marginal_guide: Guide::new(&marginal),
+            marginal,
+            integral: total / expected as f64,
+        })
+    }
+
+    /// The number of cells along x (columns).
+    pub fn nx(&self) -> usize {
+        self.nx
+    }
+
+    /// The number of cells along y (rows).
+    pub fn ny(&self) -> usize {
+        self.ny
+    }
+
+    /// The number of cells nx·ny.
+    pub fn count(&self) -> usize {
+        self.nx * self.ny
+    }
+
+    /// The marginal CDF over rows at the top edge of each row:
+    /// P(y < (j+1)/ny), the last entry exactly 1.
+    pub fn marginal(&self) -> &[f32] {
+        &self.marginal
+    }
+
+    /// The conditional CDF of x within row `row` at the right edge of each
+    /// cell: P(x < (k+1)/nx | row); `None` for a row out of range.
+    pub fn conditional(&self, row: usize) -> Option<&[f32]> {
+        (row < self.ny).then(|| &self.conditional[row * self.nx..(row + 1) * self.nx])
+    }
+
+    /// All conditional CDFs, row-major (`ny` rows of `nx`).
+    pub fn cdf(&self) -> &[f32] {
+        &self.conditional
+    }
+
+    /// The normalised density of cell (column `ix`, row `iy`):
+    /// p = ny (M_j - M_{j-1}) · nx (C_k - C_{k-1}); 0 out of range. When both
+    /// probabilities are positive the product is at least the smallest
+    /// positive `f32`, so a cell that can be drawn never reports 0.
+    #[inline]
+    pub fn cell_pdf(&self, ix: usize, iy: usize) -> f32 {
+        if ix >= self.nx || iy >= self.ny {
+            return 0.0;
+        }
+        let row = &self.conditional[iy * self.nx..(iy + 1) * self.nx];
+        joint_pdf(
+            cell_mass(&self.marginal, iy) * self.ny as f32,
+            cell_mass(row, ix) * self.nx as f32,
+        )
+    }
+
+    /// The normalised density of every cell, row-major (allocates).
+    pub fn func(&self) -> Vec<f32> {
+        (0..self.ny)
+            .flat_map(|iy| (0..self.nx).map(move |ix| (ix, iy)))
+            .map(|(ix, iy)| self.cell_pdf(ix, iy))
+            .collect()
+    }
+
+    /// The column k of a clamped `u` in a row's conditional CDF: the number
+    /// of entries `<= u`. The last entry of a row is 1 > u, so counting the
+    /// whole row equals counting all but its last entry.
+    #[inline(always)]
+    fn column(&self, row: &[f32], u: f32) -> usize {
+        if row.len() <= LINEAR_ROW {
+            count_linear(row, u)
+        } else {
+            count_at_or_below(&row[..row.len() - 1], u)
+        }
+    }
+
+    /// The sample for a clamped `u` once its row j and column k are known.
+    #[inline(always)]
+    fn finish(&self, j: usize, k: usize, u: Vec2) -> Sample2D {
+        let (nx, ny) = (self.nx, self.ny);
+        let (nxf, nyf) = (nx as f32, ny as f32);
+        let (dv, row_mass) = within_cell(&self.marginal, j, u.y);
+        let row = &self.conditional[j * nx..(j + 1) * nx];
+        let (du, col_mass) = within_cell(row, k, u.x);
+        Sample2D {
+            p: Vec2::new(
+                position_in_cell(k, du, nx, nxf),
+                position_in_cell(j, dv, ny, nyf),
+            ),
+            pdf: joint_pdf(row_mass * nyf, col_mass * nxf),
+        }
+    }
+}
+
+/// The product of a marginal and a conditional density, kept from
+/// underflowing to 0 when both are positive.
+#[inline(always)]
+fn joint_pdf(marginal: f32, conditional: f32) -> f32 {
+    let p = marginal * conditional;
+    if marginal > 0.0 && conditional > 0.0 {
+        p.max(f32::from_bits(1))
+    } else {
+        p
+    }
+}
+
+impl Distribution2D for PiecewiseConstant2D {
+    /// The row j from the marginal with u.y, then the column k from row j's
+    /// conditional with u.x; density ny (M_j - M_{j-1}) · nx (C_k - C_{k-1}).
+    #[inline(always)]
+    fn sample(&self, u: Vec2) -> Sample2D {
+        let nx = self.nx;
+        let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+        let j = self.marginal_guide.count_at_or_below(&self.marginal, u.y);
+        let k = self.column(&self.conditional[j * nx..(j + 1) * nx], u.x);
+        self.finish(j, k, u)
+    }
+
+    /// p(x, y) of the cell (floor(x nx), floor(y ny)); 0 outside [0, 1)^2.
+    #[inline]
+    fn pdf(&self, p: Vec2) -> f32 {
+        if !((0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y)) {
+            return 0.0;
+        }
+        self.cell_pdf(
+            cell_of(p.x, self.nx, self.nx as f32),
+            cell_of(p.y, self.ny, self.ny as f32),
+        )
+    }
+
+    /// (P(x | row of y), P(y)), each piecewise linear in its cell.
+    fn invert(&self, p: Vec2) -> Vec2 {
+        let y = p.y.clamp(0.0, 1.0);
+        let j = cell_of(y, self.ny, self.ny as f32);
+        let row = &self.conditional[j * self.nx..(j + 1) * self.nx];
+        Vec2::new(cdf_at(row, p.x), cdf_at(&self.marginal, p.y))
+    }
+
+    /// ∫∫ f = (Σ f) / (nx ny), of the values given to [`new`](Self::new).
+    fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// The conditional and marginal CDFs and the marginal's guide table.
+    fn storage_bytes(&self) -> usize {
+        (self.conditional.capacity() + self.marginal.capacity()) * std::mem::size_of::<f32>()
+            + self.marginal_guide.bytes()
+    }
+
+    /// The same samples as [`sample`](Distribution2D::sample), compiled for
+    /// AVX2 where the CPU has it (see `sample_batch_lanes`).
+    fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { self.sample_batch_avx2(u, out) };
+            return;
+        }
+        self.sample_batch_lanes(u, out);
+    }
+}
+
+impl PiecewiseConstant2D {
+    /// [`sample_batch_lanes`](Self::sample_batch_lanes) compiled for AVX2:
+    /// the conditional count becomes 8-wide compares, and `floor` an
+    /// instruction. Without fast-math the arithmetic is the same IEEE
+    /// operations in the same order, so the samples are bit-identical.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn sample_batch_avx2(&self, u: &[Vec2], out: &mut [Sample2D]) {
+        self.sample_batch_lanes(u, out);
+    }
+
+    /// The same samples as [`sample`](Distribution2D::sample), eight draws
+    /// at a time in stages (rows, then columns, then positions), so that
+    /// the out-of-order core sees eight independent chains of loads at each
+    /// stage instead of one long chain per draw.
+    #[inline(always)]
+    fn sample_batch_lanes(&self, u: &[Vec2], out: &mut [Sample2D]) {
+        let len = u.len().min(out.len());
+        let (u, out) = (&u[..len], &mut out[..len]);
+        let nx = self.nx;
+        let mut u_chunks = u.chunks_exact(LANES);
+        let mut out_chunks = out.chunks_exact_mut(LANES);
+        for (uc, oc) in (&mut u_chunks).zip(&mut out_chunks) {
+            let mut ul = [Vec2::ZERO; LANES];
+            for (v, u) in ul.iter_mut().zip(uc) {
+                *v = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+            }
+            let mut j = [0usize; LANES];
+            for (j, u) in j.iter_mut().zip(&ul) {
+                *j = self.marginal_guide.count_at_or_below(&self.marginal, u.y);
+            }
+            let mut k = [0usize; LANES];
+            for ((k, &j), u) in k.iter_mut().zip(&j).zip(&ul) {
+                *k = self.column(&self.conditional[j * nx..(j + 1) * nx], u.x);
+            }
+            for l in 0..LANES {
+                oc[l] = self.finish(j[l], k[l], ul[l]);
+            }
+        }
+        for (o, &u) in out_chunks
+            .into_remainder()
+            .iter_mut()
+            .zip(u_chunks.remainder())
+        {
+            *o = self.sample(u);
+        }
+    }
+}
+
+/// The number of draws `sample_batch` advances together.
+const LANES: usize = 8;
+
+/// Check that a stored CDF is one [`fill_cdf`] could have produced: finite,
+/// within [0, 1], non-decreasing and ending at exactly 1. Sampling relies on
+/// each of these (a search that always finds a cell, a positive cell mass).
+fn check_stored_cdf(field: &'static str, cdf: &[f32]) -> std::result::Result<(), PersistError> {
+    let invalid = |reason: String| PersistError::Invalid { field, reason };
+    if cdf.is_empty() || cdf.len() > MAX_CELLS {
+        return Err(invalid(format!("{} cells", cdf.len())));
+    }
+    let mut previous = 0.0f32;
+    for (k, &c) in cdf.iter().enumerate() {
+        if !(c >= previous && c <= 1.0) {
+            return Err(invalid(format!(
+                "entry {k} ({c}) breaks monotonicity in [0, 1]"
+            )));
+        }
+        previous = c;
+    }
+    if previous != 1.0 {
+        return Err(invalid(format!("ends at {previous}, not 1")));
+    }
+    Ok(())
+}
+
+fn check_stored_integral(integral: f64) -> std::result::Result<f64, PersistError> {
+    if integral.is_finite() && integral >= 0.0 {
+        Ok(integral)
+    } else {
+        Err(PersistError::Invalid {
+            field: "integral",
+            reason: format!("{integral} is not a finite non-negative number"),
+        })
+    }
+}
+
+/// Stored as the CDF (`f32 array`) and the integral (f64).
+impl Persist for PiecewiseConstant1D {
+    fn encode(&self, w: &mut ByteWriter) {
+        w.f32_array(&self.cdf);
+        w.f64(self.integral);
+    }
+
+    fn decode(r: &mut ByteReader<'_>) -> std::result::Result<Self, PersistError> {
+        let cdf = r.f32_array("PiecewiseConstant1D cdf")?;
+        check_stored_cdf("PiecewiseConstant1D cdf", &cdf)?;
+        let integral = check_stored_integral(r.f64("integral")?)?;
+        Ok(PiecewiseConstant1D {
+            guide: Guide::new(&cdf),
+            cdf,
+            integral,
+        })
+    }
+}
+
+/// Stored as nx, ny (u32), the conditional CDFs (`f32 array`, ny rows of nx),
+/// the marginal CDF (`f32 array` of ny) and the integral (f64).
+impl Persist for PiecewiseConstant2D {
+    fn encode(&self, w: &mut ByteWriter) {
+        w.length(self.nx);
+        w.length(self.ny);
+        w.f32_array(&self.conditional);
+        w.f32_array(&self.marginal);
+        w.f64(self.integral);
+    }
+
+    fn decode(r: &mut ByteReader<'_>) -> std::result::Result<Self, PersistError> {
+        let nx = r.u32("nx")? as usize;
+        let ny = r.u32("ny")? as usize;
+        let conditional = r.f32_array("PiecewiseConstant2D conditional")?;
+        if nx == 0 || ny == 0 || nx.checked_mul(ny) != Some(conditional.len()) {
+            return Err(PersistError::Invalid {
+                field: "PiecewiseConstant2D conditional",
+                reason: format!("{} entries for {nx} x {ny}", conditional.len()),
+            });
+        }
+        for row in conditional.chunks_exact(nx) {
+            check_stored_cdf("PiecewiseConstant2D conditional", row)?;
+        }
+        let marginal = r.f32_array("PiecewiseConstant2D marginal")?;
+        if marginal.len() != ny {
+            return Err(PersistError::Invalid {
+                field: "PiecewiseConstant2D marginal",
+                reason: format!("{} entries for {ny} rows", marginal.len()),
+            });
+        }
+        check_stored_cdf("PiecewiseConstant2D marginal", &marginal)?;
+        let integral = check_stored_integral(r.f64("integral")?)?;
+        Ok(PiecewiseConstant2D {
+            nx,
+            ny,
+            conditional,
+            marginal_guide: Guide::new(&marginal),
+            marginal,
+            integral,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn lower_bound_matches_partition_point() {
+        let cdf = [0.1f32, 0.1, 0.3, 0.5, 0.5, 0.9, 1.0];
+        for n in 0..=cdf.len() {
+            let s = &cdf[..n];
+            for u in [0.0, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9, 0.95, 1.0, 2.0] {
+                assert_eq!(
+                    count_at_or_below(s, u),
+                    s.partition_point(|&c| c <= u),
+                    "n {n} u {u}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn one_d_samples_follow_the_values() {
+        let d = PiecewiseConstant1D::new(&[1.0, 3.0, 0.0, 4.0]).unwrap();
+        assert_eq!(d.count(), 4);
+        approx::assert_relative_eq!(d.integral(), 2.0);
+        assert_eq!(d.cdf(), &[0.125, 0.5, 0.5, 1.0]);
+        approx::assert_relative_eq!(d.pdf(0.1), 0.5);
+        approx::assert_relative_eq!(d.pdf(0.3), 1.5);
+        assert_eq!(d.pdf(0.6), 0.0);
+        approx::assert_relative_eq!(d.pdf(0.9), 2.0);
+        assert_eq!(d.pdf(1.0), 0.0);
+        assert_eq!(d.pdf(-0.1), 0.0);
+        assert_eq!(d.pdf(f32::NAN), 0.0);
+        let s = d.sample(0.5);
+        assert!((0.75..1.0).contains(&s.x), "{s:?}");
+        approx::assert_relative_eq!(s.pdf, 2.0);
+        assert_eq!(d.func(), vec![0.5, 1.5, 0.0, 2.0]);
+    }
+
+    #[test]
+    fn u_next_to_one_lands_in_the_last_non_empty_cell() {
+        let d = PiecewiseConstant1D::new(&[1.0, 2.0, 0.0, 0.0]).unwrap();
+        for u in [ONE_MINUS_EPSILON, 1.0, f32::INFINITY] {
+            let s = d.sample(u);
+            assert!((0.25..0.5).contains(&s.x), "{s:?}");
+            assert!(s.pdf > 0.0 && s.pdf.is_finite());
+        }
+        let s = d.sample(f32::NAN);
+        assert_eq!(s.x, 0.0);
+        // Nine cells: x = (8 + du) / 9 can round to 1 without the guard.
+        let d = PiecewiseConstant1D::new(&[1.0; 9]).unwrap();
+        let s = d.sample(ONE_MINUS_EPSILON);
+        assert!(s.x < 1.0 && d.pdf(s.x) == s.pdf);
+        let d2 = PiecewiseConstant2D::new(&[1.0, 1.0, 0.0, 2.0, 0.0, 0.0], 2, 3).unwrap();
+        let s = d2.sample(Vec2::splat(ONE_MINUS_EPSILON));
+        assert!(
+            s.p.y >= 1.0 / 3.0 && s.p.y < 2.0 / 3.0 && s.p.x >= 0.5,
+            "{s:?}"
+        );
+        assert!(s.pdf > 0.0 && s.pdf == d2.pdf(s.p));
+    }
+
+    #[test]
+    fn zero_tables_fall_back_to_uniform() {
+        let d = PiecewiseConstant1D::new(&[0.0; 5]).unwrap();
+        assert_eq!(d.integral(), 0.0);
+        for x in [0.0, 0.3, 0.99] {
+            approx::assert_relative_eq!(d.pdf(x), 1.0, max_relative = 1e-6);
+        }
+        approx::assert_relative_eq!(d.sample(0.3).x, 0.3, max_relative = 1e-6);
+        let d2 = PiecewiseConstant2D::new(&[0.0; 6], 3, 2).unwrap();
+        assert_eq!(d2.integral(), 0.0);
+        let s = d2.sample(Vec2::new(0.4, 0.7));
+        approx::assert_relative_eq!(s.pdf, 1.0, max_relative = 1e-6);
+        approx::assert_relative_eq!(s.p.x, 0.4, max_relative = 1e-6);
+        // A zero row in a non-zero table: uniform conditional, never drawn.
+        let d3 = PiecewiseConstant2D::new(&[0.0, 0.0, 1.0, 3.0], 2, 2).unwrap();
+        assert_eq!(d3.conditional(0).unwrap(), &[0.5, 1.0]);
+        assert_eq!(d3.pdf(Vec2::new(0.2, 0.2)), 0.0);
+        for u in [0.0, 0.1, 0.5, ONE_MINUS_EPSILON] {
+            let s = d3.sample(Vec2::new(0.3, u));
+            assert!(s.p.y >= 0.5 && s.pdf > 0.0);
+        }
+        approx::assert_relative_eq!(d3.pdf(Vec2::new(0.7, 0.7)), 3.0);
+    }
+
+    #[test]
+    fn bad_tables_give_the_right_error() {
+        assert!(matches!(
+            PiecewiseConstant1D::new(&[]),
+            Err(Error::EmptyTable { .. })
+        ));
+        assert!(matches!(
+            PiecewiseConstant1D::new(&[1.0, f32::NAN]),
+            Err(Error::NonFinite { index: 1, .. })
+        ));
+        assert!(matches!(
+            PiecewiseConstant1D::new(&[f32::INFINITY]),
+            Err(Error::NonFinite { index: 0, .. })
+        ));
+        assert!(matches!(
+            PiecewiseConstant1D::new(&[1.0, -1.0]),
+            Err(Error::Negative { index: 1, .. })
+        ));
+        assert!(matches!(
+            PiecewiseConstant2D::new(&[1.0; 6], 4, 2),
+            Err(Error::SizeMismatch {
+                expected: 8,
+                got: 6,
+                ..
+            })
+        ));
+        assert!(matches!(
+            PiecewiseConstant2D::new(&[], 0, 2),
+            Err(Error::EmptyTable { .. })
+        ));
+        assert!(matches!(
+            PiecewiseConstant2D::new(&[1.0, 1.0, -0.5, 1.0], 2, 2),
+            Err(Error::Negative { index: 2, .. })
+        ));
+        assert!(matches!(
+            PiecewiseConstant2D::new(&[1.0, f32::NAN], 1, 2),
+            Err(Error::NonFinite { index: 1, .. })
+        ));
+        assert!(matches!(
+            PiecewiseConstant2D::new(&[1.0], usize::MAX, 2),
+            Err(Error::InvalidParameter { .. })
+        ));
+    }
+
+    #[test]
+    fn huge_dynamic_range_stays_monotone_and_ends_at_one() {
+        let values: Vec<f32> = (0..61).map(|k| 10f32.powi(k - 30)).collect();
+        let d = PiecewiseConstant1D::new(&values).unwrap();
+        assert!(d.cdf().windows(2).all(|w| w[0] <= w[1]));
+        assert_eq!(*d.cdf().last().unwrap(), 1.0);
+        assert!(d.integral().is_finite() && d.integral() > 0.0);
+        for u in [0.0, 1e-30, 0.5, 0.9, ONE_MINUS_EPSILON] {
+            let s = d.sample(u);
+            assert!(s.x < 1.0 && s.pdf > 0.0 && s.pdf.is_finite(), "{u} {s:?}");
+            assert_eq!(d.pdf(s.x), s.pdf);
+        }
+        let mut table = values.clone();
+        table.extend(values.iter().rev());
+        let d2 = PiecewiseConstant2D::new(&table, 61, 2).unwrap();
+        assert_eq!(*d2.marginal().last().unwrap(), 1.0);
+        for u in [Vec2::ZERO, Vec2::splat(0.5), Vec2::splat(ONE_MINUS_EPSILON)] {
+            let s = d2.sample(u);
+            assert!(s.pdf > 0.0 && s.pdf.is_finite() && s.pdf == d2.pdf(s.p));
+        }
+    }
+
+    #[test]
+    fn storage_counts_the_cdfs() {
+        let d = PiecewiseConstant2D::new(&vec![1.0; 256 * 32], 32, 256).unwrap();
+        // The CDFs plus a u16 guide of ny + 1 entries over the marginal.
+        assert_eq!(d.storage_bytes(), (256 * 32 + 256) * 4 + 257 * 2);
+        assert_eq!(
+            PiecewiseConstant1D::new(&[1.0; 7]).unwrap().storage_bytes(),
+            28 + 8 * 2
+        );
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        /// The branch-free 4-ary search counts exactly what a binary search
+        /// does, for every length (the lockstep lanes included).
+        #[test]
+        fn search_matches_partition_point(
+            mut v in prop::collection::vec(prop_oneof![Just(0.5f32), 0.0f32..1.0], 0..300),
+            u in prop::collection::vec(0.0f32..1.0, 8),
+        ) {
+            v.sort_by(f32::total_cmp);
+            let lanes: [f32; 8] = std::array::from_fn(|l| if l == 3 { 0.5 } else { u[l] });
+            let counts = count_at_or_below_lanes(&v, [0; 8], v.len(), lanes);
+            for (l, &u) in lanes.iter().enumerate() {
+                let expected = v.partition_point(|&c| c <= u);
+                prop_assert_eq!(count_at_or_below(&v, u), expected);
+                prop_assert_eq!(counts[l], expected);
+            }
+        }
+
+        /// The guided search counts exactly what a binary search does, for
+        /// CDFs with long flat runs, steep steps and every u near a guide
+        /// boundary.
+        #[test]
+        fn guided_search_matches_partition_point(values in table(300), u in prop::collection::vec(0.0f32..1.0, 16)) {
+            let d = PiecewiseConstant1D::new(&values).unwrap();
+            let cdf = d.cdf();
+            let n = cdf.len();
+            let g = n as f32;
+            let near_boundaries = (0..n).flat_map(|k| {
+                let b = k as f32 / g;
+                [b.next_down().max(0.0), b, b.next_up()]
+            });
+            for u in u.iter().copied().chain(near_boundaries).chain(cdf.iter().copied()) {
+                let u = clamp_unit(u);
+                let expected = cdf[..n - 1].partition_point(|&c| c <= u);
+                prop_assert_eq!(d.guide.count_at_or_below(cdf, u), expected, "u {}", u);
+            }
+        }
+
+        /// `sample_batch` returns exactly what `sample` does, in chunks of
+        /// `LANES` and in the remainder.
+        #[test]
+        fn batches_equal_single_samples(values in table(80), nx in 1usize..9, n in 0usize..30, seed in 0u64..1000) {
+            let ny = values.len().div_ceil(nx);
+            let mut v = values.clone();
+            v.resize(nx * ny, 0.0);
+            let d2 = PiecewiseConstant2D::new(&v, nx, ny).unwrap();
+            let d1 = PiecewiseConstant1D::new(&values).unwrap();
+            let mut state = seed;
+            let mut next = || {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            };
+            let u2: Vec<Vec2> = (0..n).map(|_| Vec2::new(next(), next())).collect();
+            let u1: Vec<f32> = u2.iter().map(|u| u.x).collect();
+            let mut out2 = vec![Sample2D::default(); n + 3];
+            let mut out1 = vec![Sample1D::default(); n];
+            d2.sample_batch(&u2, &mut out2);
+            d1.sample_batch(&u1, &mut out1);
+            for k in 0..n {
+                prop_assert_eq!(out2[k], d2.sample(u2[k]));
+                prop_assert_eq!(out1[k], d1.sample(u1[k]));
+            }
+            prop_assert!(out2[n..].iter().all(|s| *s == Sample2D::default()));
+        }
+    }
+
+    /// Tables with zeros and a wide dynamic range.
+    fn table(max_len: usize) -> impl Strategy<Value = Vec<f32>> {
+        prop::collection::vec(
+            prop_oneof![Just(0.0f32), 0.0f32..10.0, 1e-20f32..1e-10, 1e10f32..1e20],
+            1..max_len,
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        #[test]
+        fn one_d_sample_pdf_invert_agree(values in table(40), u in 0.0f32..1.0) {
+            let d = PiecewiseConstant1D::new(&values).unwrap();
+            let s = d.sample(u);
+            prop_assert!((0.0..1.0).contains(&s.x));
+            prop_assert!(s.pdf > 0.0 && s.pdf.is_finite());
+            prop_assert_eq!(d.pdf(s.x), s.pdf);
+            let back = d.invert(s.x);
+            prop_assert!((back - u).abs() <= 1e-4, "u {} -> x {} -> {}", u, s.x, back);
+        }
+
+        #[test]
+        fn two_d_sample_pdf_invert_agree(
+            values in table(60), nx in 1usize..8, ux in 0.0f32..1.0, uy in 0.0f32..1.0
+        ) {
+            let ny = values.len().div_ceil(nx);
+            let mut v = values.clone();
+            v.resize(nx * ny, 0.0);
+            let d = PiecewiseConstant2D::new(&v, nx, ny).unwrap();
+            let u = Vec2::new(ux, uy);
+            let s = d.sample(u);
+            prop_assert!((0.0..1.0).contains(&s.p.x) && (0.0..1.0).contains(&s.p.y));
+            prop_assert!(s.pdf > 0.0 && s.pdf.is_finite());
+            prop_assert_eq!(d.pdf(s.p), s.pdf);
+            let back = d.invert(s.p);
+            prop_assert!((back - u).abs().max_element() <= 1e-4, "u {} -> {} -> {}", u, s.p, back);
+        }
+
+        /// The stored density integrates to one (a zero table is uniform).
+        #[test]
+        fn two_d_density_is_normalised(values in table(60), nx in 1usize..8) {
+            let ny = values.len().div_ceil(nx);
+            let mut v = values.clone();
+            v.resize(nx * ny, 0.0);
+            let d = PiecewiseConstant2D::new(&v, nx, ny).unwrap();
+            let total: f64 = d.func().iter().map(|&p| p as f64).sum::<f64>() / (nx * ny) as f64;
+            prop_assert!((total - 1.0).abs() < 1e-5, "{}", total);
+        }
+    }
+}

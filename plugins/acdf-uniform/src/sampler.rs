@@ -1,0 +1,620 @@
+//! The tabulated measured-BRDF sampler: one half-vector distribution per
+//! outgoing cell, built on first use.
+
+use crate::tabulate::{
+    fast_atan2, phi_o_cell, sin_cos_turns, tabulate_slice, theta_o_cell, unit_cell, HalfMap,
+};
+use crate::{PiecewiseConstant2D, Resolution};
+use acdf_core::geometry::{half_vector, reflect, sin_theta, wrap_angle};
+use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
+use acdf_core::{
+    clamp_unit, is_valid_outgoing, Brdf, BxdfSample, BxdfSampler, Distribution2D, Error, Result,
+    Sample2D, Vec2, Vec3, ONE_MINUS_EPSILON,
+};
+use rayon::prelude::*;
+use std::f32::consts::TAU;
+use std::sync::{Arc, OnceLock};
+
+/// What a tabulated half-vector slice becomes: the distribution a
+/// [`TabulatedBrdfSampler`] draws (θ_h, φ_h) from.
+pub trait SliceBuilder: Send + Sync {
+    /// The distribution over the unit square (x → φ_h, y → θ_h).
+    type Dist: Distribution2D;
+
+    /// The name used as the sampler name, e.g. `uniform` or `adaptive:dp`.
+    fn name(&self) -> String;
+
+    /// Build the distribution of one slice. `values` is row-major,
+    /// `n_theta_h` rows (y, θ_h) of `n_phi_h` columns (x, φ_h); every value is
+    /// finite and non-negative, and the rows are spaced as
+    /// [`tabulate`](crate::tabulate) documents.
+    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist>;
+
+    /// Whether `dist.pdf` is the same at every point of the box
+    /// [p.x ± margin.x] × [p.y ± margin.y], given that each margin is under
+    /// half a tabulation cell.
+    ///
+    /// The sampler asks this to report a draw's density from the drawn cell
+    /// instead of recomputing it from wi (see
+    /// [`TabulatedBrdfSampler`]'s `finish_table_draw`); `false` is always
+    /// safe and only costs that recomputation. The default answers `false`:
+    /// a builder whose distribution can tell cheaply (in a few operations,
+    /// since the recomputation is what it replaces) overrides it.
+    fn same_cell_around(&self, dist: &Self::Dist, p: Vec2, margin: Vec2) -> bool {
+        let _ = (dist, p, margin);
+        false
+    }
+}
+
+/// Builds [`PiecewiseConstant2D`] slices: the uniform tabulation itself.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PiecewiseConstantBuilder;
+
+impl SliceBuilder for PiecewiseConstantBuilder {
+    type Dist = PiecewiseConstant2D;
+
+    fn name(&self) -> String {
+        "uniform".to_string()
+    }
+
+    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist> {
+        PiecewiseConstant2D::new(values, n_phi_h, n_theta_h)
+    }
+
+    /// The box lies in the cell of p: p is at least `margin` from the cell's
+    /// edges along both axes (no density lookups).
+    #[inline(always)]
+    fn same_cell_around(&self, dist: &Self::Dist, p: Vec2, margin: Vec2) -> bool {
+        let inside = |x: f32, n: usize, m: f32| {
+            let t = x * n as f32;
+            // x >= 0, so truncation is the floor (and no libm call).
+            let f = t - (t as u32) as f32;
+            let m = m * n as f32;
+            f >= m && f <= 1.0 - m
+        };
+        inside(p.x, dist.nx(), margin.x) && inside(p.y, dist.ny(), margin.y)
+    }
+}
+
+/// The uniformly tabulated sampler, named `uniform`.
+pub type UniformBrdfSampler = TabulatedBrdfSampler<PiecewiseConstantBuilder>;
+
+/// Importance sampling of a BRDF from tabulated half-vector distributions.
+///
+/// For the outgoing cell of `wo` (see [`tabulate`](crate::tabulate)) a 2D
+/// distribution over (x, v) ∈ [0, 1)^2 is drawn from, giving the half vector
+/// φ_h = 2π x (+ φ_o for a relative slice), θ_h = (π/2) v² (equal solid
+/// angle in the first row, see [`HalfMap`]), and wi = reflect(wo, h). Its
+/// solid-angle density is p(wi) = p_xv(x, v) / (J(v) · 4 (wo·h)), with
+/// J(v) = (π v)(2π) sin θ_h = dω_h / (dx dv).
+///
+/// - **Isotropic slices.** When the material is isotropic and
+///   `resolution.phi_o == 1`, there is one slice per θ_o cell, tabulated at
+///   φ_o = 0, and φ_h is measured from φ_o of the actual `wo`. Otherwise all
+///   `phi_o` slices are kept with absolute φ_h (the paper's configuration);
+///   an anisotropic material with `phi_o == 1` is rejected by
+///   [`new`](Self::new).
+/// - **Lazy, thread-safe building.** A slice is tabulated and built the
+///   first time a `wo` in its cell is seen ([`OnceLock`] per cell);
+///   [`build_all`](Self::build_all) builds every slice in parallel.
+/// - **Failures.** A slice whose BRDF is zero for every wi falls back to the
+///   builder's all-zero behaviour (uniform over (x, v) for
+///   [`PiecewiseConstant2D`]), so it still samples the hemisphere. A slice
+///   whose build fails (impossible for the uniform builder, since tabulated
+///   values are sanitised) samples nothing: `sample` gives `None` and the
+///   table part of `pdf` is 0.
+/// - **Cosine mixing.** With [`with_cosine_mix`](Self::with_cosine_mix)(a),
+///   the density is (1 - a) p_table + a cos θ_i / π in both `sample` and
+///   `pdf`.
+/// - **Consistency.** `sample` reports `pdf(wo, wi)` of the returned wi to
+///   about 1e-5 relative: from the drawn cell when the recomputed cell is
+///   certainly of the same density (and the builder can tell cheaply, see
+///   [`SliceBuilder::same_cell_around`]), otherwise by the same routine as
+///   `pdf`, which agrees exactly. A draw whose density comes out 0 or
+///   non-finite (below the horizon, or a half vector whose recomputed cell
+///   has zero density) is `None`.
+/// - **Speed.** The half-vector maps use polynomial sine, cosine and
+///   arctangent ([`fast_atan2`](crate::tabulate::fast_atan2),
+///   [`sin_cos_turns`](crate::tabulate::sin_cos_turns), within a few 1e-7
+///   rad), the same in `sample` and `pdf`; `sample_batch` without a cosine
+///   lobe draws the table samples through the distribution's own
+///   `sample_batch`.
+pub struct TabulatedBrdfSampler<B: SliceBuilder> {
+    brdf: Arc<dyn Brdf>,
+    resolution: Resolution,
+    builder: B,
+    name: String,
+    relative_phi: bool,
+    cosine_fraction: f32,
+    half_map: HalfMap,
+    /// Whether cells are wide enough for the drawn-cell shortcut of
+    /// `sample` (at most 1 / (2 [`CELL_MARGIN`]) cells per half-vector axis).
+    shortcut_cells: bool,
+    slices: Vec<OnceLock<Result<B::Dist>>>,
+}
+
+impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
+    /// A sampler of `brdf` at `resolution` whose slices `builder` makes.
+    /// Errors: an invalid resolution, or an anisotropic material with
+    /// `resolution.phi_o == 1`.
+    pub fn new(brdf: Arc<dyn Brdf>, resolution: Resolution, builder: B) -> Result<Self> {
+        resolution.validate()?;
+        let isotropic = brdf.is_isotropic();
+        if !isotropic && resolution.phi_o == 1 {
+            return Err(Error::InvalidParameter {
+                name: "resolution",
+                reason: format!(
+                    "{resolution}: material `{}` is anisotropic and needs more than one phi_o cell",
+                    brdf.name()
+                ),
+            });
+        }
+        let slices = (0..resolution.slices()).map(|_| OnceLock::new()).collect();
+        Ok(TabulatedBrdfSampler {
+            name: builder.name(),
+            brdf,
+            resolution,
+            builder,
+            relative_phi: resolution.phi_o == 1,
+            cosine_fraction: 0.0,
+            half_map: HalfMap::new(resolution.theta_h),
+            shortcut_cells: (resolution.theta_h.max(resolution.phi_h) as f32) * CELL_MARGIN <= 0.5,
+            slices,
+        })
+    }
+
+    /// A sampler whose every slice is already built (read from a file, see
+    /// [`persist`](crate::persist)); `slices` are in the order of
+    /// [`slice`](Self::slice) indices, θ_o-major. Errors as [`new`](Self::new),
+    /// and for a slice count other than `resolution.slices()`.
+    pub fn from_built_slices(
+        brdf: Arc<dyn Brdf>,
+        resolution: Resolution,
+        builder: B,
+        slices: Vec<B::Dist>,
+    ) -> Result<Self> {
+        let mut sampler = Self::new(brdf, resolution, builder)?;
+        if slices.len() != sampler.slices.len() {
+            return Err(Error::SizeMismatch {
+                what: "built slices",
+                expected: sampler.slices.len(),
+                got: slices.len(),
+            });
+        }
+        sampler.slices = slices.into_iter().map(|d| OnceLock::from(Ok(d))).collect();
+        Ok(sampler)
+    }
+
+    /// Mix in the cosine lobe with probability `fraction` in [0, 1]:
+    /// p = (1 - a) p_table + a cos θ_i / π. Errors for a fraction outside
+    /// [0, 1] or NaN.
+    pub fn with_cosine_mix(mut self, fraction: f32) -> Result<Self> {
+        if !(0.0..=1.0).contains(&fraction) {
+            return Err(Error::InvalidParameter {
+                name: "cosine fraction",
+                reason: format!("{fraction} is not in [0, 1]"),
+            });
+        }
+        self.cosine_fraction = fraction;
+        Ok(self)
+    }
+
+    /// The probability a of drawing from the cosine lobe.
+    pub fn cosine_mix(&self) -> f32 {
+        self.cosine_fraction
+    }
+
+    /// The tabulation resolution.
+    pub fn resolution(&self) -> Resolution {
+        self.resolution
+    }
+
+    /// The material sampled.
+    pub fn brdf(&self) -> &Arc<dyn Brdf> {
+        &self.brdf
+    }
+
+    /// The slice builder.
+    pub fn builder(&self) -> &B {
+        &self.builder
+    }
+
+    /// Whether φ_h is measured relative to φ_o (one φ_o slice).
+    pub fn is_relative_phi(&self) -> bool {
+        self.relative_phi
+    }
+
+    /// Build every slice now, in parallel; the first build error, if any.
+    pub fn build_all(&self) -> Result<()> {
+        (0..self.slices.len())
+            .into_par_iter()
+            .try_for_each(|index| self.slice_at(index).map(|_| ()).map_err(Clone::clone))
+    }
+
+    /// The slices built so far (those that built successfully).
+    pub fn built_slices(&self) -> impl Iterator<Item = &B::Dist> {
+        self.slices
+            .iter()
+            .filter_map(|s| s.get().and_then(|r| r.as_ref().ok()))
+    }
+
+    /// The distribution of slice (θ_o cell, φ_o cell), building it if
+    /// needed; `None` for indices out of range, the build error if it failed.
+    pub fn slice(&self, theta_o_index: usize, phi_o_index: usize) -> Option<Result<&B::Dist>> {
+        if theta_o_index >= self.resolution.theta_o || phi_o_index >= self.resolution.phi_o {
+            return None;
+        }
+        let index = theta_o_index * self.resolution.phi_o + phi_o_index;
+        Some(self.slice_at(index).map_err(Clone::clone))
+    }
+
+    fn slice_at(&self, index: usize) -> std::result::Result<&B::Dist, &Error> {
+        self.slices[index]
+            .get_or_init(|| {
+                let res = &self.resolution;
+                let (i, j) = (index / res.phi_o, index % res.phi_o);
+                let values = tabulate_slice(&*self.brdf, res, i, j);
+                self.builder.build(&values, res.phi_h, res.theta_h)
+            })
+            .as_ref()
+    }
+
+    /// The slice for a valid `wo`, with the rotation that carries its
+    /// half-vector axis to the world: by φ_o for relative slices, none for
+    /// absolute ones.
+    #[inline(always)]
+    fn slice_for(&self, wo: Vec3) -> Option<Slice<'_, B::Dist>> {
+        let res = &self.resolution;
+        let sin_o = sin_theta(wo);
+        let i = theta_o_cell(fast_atan2(sin_o, wo.z), res.theta_o);
+        let (j, rotation) = if self.relative_phi {
+            // (cos φ_o, sin φ_o) without trigonometry; φ_o = 0 on the pole.
+            let rotation = if sin_o > 0.0 {
+                Vec2::new(wo.x / sin_o, wo.y / sin_o)
+            } else {
+                Vec2::X
+            };
+            (0, rotation)
+        } else {
+            (phi_o_cell(azimuth(wo), res.phi_o), Vec2::X)
+        };
+        self.slice_at(i * res.phi_o + j).ok().map(|dist| Slice {
+            dist,
+            rotation,
+            map: self.half_map,
+        })
+    }
+
+    /// The table part of the density, p_xv(x, v) / (J(v) · 4 (wo·h)), for a
+    /// valid wo and any wi; 0 where it cannot be drawn or is not finite.
+    #[inline(always)]
+    fn table_pdf(slice: &Slice<'_, B::Dist>, wo: Vec3, wi: Vec3) -> f32 {
+        if !(wi.z > 0.0) {
+            return 0.0;
+        }
+        let Some(h) = half_vector(wi, wo) else {
+            return 0.0;
+        };
+        let wo_h = wo.dot(h);
+        let sin_h = sin_theta(h);
+        let v = slice.map.v_of(sin_h, h.z).min(ONE_MINUS_EPSILON);
+        let x = unit_azimuth(slice.to_slice(h));
+        let denominator = slice.map.jacobian(v, sin_h) * 4.0 * wo_h;
+        if !(denominator > 0.0) {
+            return 0.0;
+        }
+        let p = slice.dist.pdf(Vec2::new(x, v)) / denominator;
+        if p.is_finite() {
+            p
+        } else {
+            0.0
+        }
+    }
+
+    /// The slice of a valid wo, unless the pure cosine lobe needs none (then
+    /// none is built).
+    #[inline]
+    fn slice_for_mix(&self, wo: Vec3) -> Option<Slice<'_, B::Dist>> {
+        if self.cosine_fraction < 1.0 {
+            self.slice_for(wo)
+        } else {
+            None
+        }
+    }
+
+    /// With probability a (decided by u.x, then rescaled to [0, 1)) a cosine
+    /// draw, otherwise a table draw of (x, v) and wi = reflect(wo, h); the
+    /// reported density is the mixed pdf at the returned wi, so it equals
+    /// `pdf(wo, wi)` exactly. `wo` must be valid.
+    #[inline]
+    fn sample_in(
+        &self,
+        slice: Option<&Slice<'_, B::Dist>>,
+        wo: Vec3,
+        u: Vec2,
+    ) -> Option<BxdfSample> {
+        let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+        let a = self.cosine_fraction;
+        let wi = if u.x < a {
+            square_to_cosine_hemisphere(Vec2::new(clamp_unit(u.x / a), u.y))
+        } else {
+            let slice = slice?;
+            let ux = if a > 0.0 {
+                clamp_unit((u.x - a) / (1.0 - a))
+            } else {
+                u.x
+            };
+            let s = slice.dist.sample(Vec2::new(ux, u.y));
+            return self.finish_table_draw(slice, wo, s);
+        };
+        let pdf = self.pdf_in(slice, wo, wi);
+        (pdf > 0.0).then_some(BxdfSample { wi, pdf })
+    }
+
+    /// The sample for a table draw s = (x, v) with density p_xv: wi =
+    /// reflect(wo, h(x, v)) and the mixed density at wi, equal to
+    /// `pdf(wo, wi)` to 1e-5 relative.
+    ///
+    /// `pdf(wo, wi)` recovers (x', v') from wi, which costs a normalisation,
+    /// two arctangents and a table lookup. When (x', v') is certainly in a
+    /// cell of the same density as (x, v), the table part is instead
+    /// p_xv / (J(v) · 4 (wo·h)) with the drawn h. The recomputed
+    /// h' = normalise(wi + wo) differs from h by the rounding of reflect,
+    /// add and normalise: wi + wo = 2 (wo·h) h is found to a few 1e-8
+    /// absolute, so h' is within about 6e-8 / (wo·h) of h, wo·h' is within
+    /// 6e-8 / (wo·h)² relative of wo·h, and θ_h' within 6e-8 / ((wo·h)
+    /// sin θ_h) relative of θ_h. The shortcut is taken when wo·h >= 1/8 and
+    /// (wo·h) sin θ_h >= 1/64, outside the polar cap row (both relative
+    /// errors are then under 4e-6, so J and wo·h, hence the density, agree
+    /// to about 1e-5), and when the slice's density is constant over a box
+    /// of half-width [`CELL_MARGIN`] around the draw (x' is within
+    /// 6e-8 · 64 / 2π < 7e-7 of x, and v' within 2e-6 of v); otherwise, and for tabulations finer than the
+    /// margin allows, the density is recomputed exactly as `pdf` does.
+    #[inline(always)]
+    fn finish_table_draw(
+        &self,
+        slice: &Slice<'_, B::Dist>,
+        wo: Vec3,
+        s: Sample2D,
+    ) -> Option<BxdfSample> {
+        let (h, sin_h) = slice.half_of(s.p);
+        let wo_h = wo.dot(h);
+        let wi = reflect(wo, h).normalize_or_zero();
+        if !(wi.z > 0.0) {
+            return None;
+        }
+        let shortcut = self.shortcut_cells
+            && wo_h >= 0.125
+            && wo_h * sin_h >= 1.0 / 64.0
+            && s.p.y >= slice.map.cap_top()
+            && self
+                .builder
+                .same_cell_around(slice.dist, s.p, Vec2::splat(CELL_MARGIN));
+        let pdf = if shortcut {
+            let denominator = slice.map.jacobian(s.p.y, sin_h) * 4.0 * wo_h;
+            let table = s.pdf / denominator;
+            if denominator > 0.0 && table.is_finite() {
+                self.mix_with_cosine(table, wi)
+            } else {
+                self.pdf_in(Some(slice), wo, wi)
+            }
+        } else {
+            self.pdf_in(Some(slice), wo, wi)
+        };
+        (pdf > 0.0).then_some(BxdfSample { wi, pdf })
+    }
+
+    /// (1 - a) table + a cos θ_i / π, 0 if not finite: the mixing of
+    /// [`mixed_pdf`](Self::mixed_pdf) for a known table density.
+    #[inline(always)]
+    fn mix_with_cosine(&self, table: f32, wi: Vec3) -> f32 {
+        let a = self.cosine_fraction;
+        let cosine = if a > 0.0 {
+            cosine_hemisphere_pdf(wi)
+        } else {
+            0.0
+        };
+        let p = (1.0 - a) * table + a * cosine;
+        if p.is_finite() {
+            p
+        } else {
+            0.0
+        }
+    }
+
+    /// The mixed density for a valid wo; 0 for a non-finite wi or one at or
+    /// below the horizon.
+    #[inline(always)]
+    fn pdf_in(&self, slice: Option<&Slice<'_, B::Dist>>, wo: Vec3, wi: Vec3) -> f32 {
+        if !wi.is_finite() || !(wi.z > 0.0) {
+            return 0.0;
+        }
+        self.mixed_pdf(slice, wo, wi)
+    }
+
+    /// The mixed density (1 - a) p_table + a cos θ_i / π for a valid wo.
+    #[inline(always)]
+    fn mixed_pdf(&self, slice: Option<&Slice<'_, B::Dist>>, wo: Vec3, wi: Vec3) -> f32 {
+        let a = self.cosine_fraction;
+        let table = match slice {
+            Some(slice) if a < 1.0 => Self::table_pdf(slice, wo, wi),
+            _ => 0.0,
+        };
+        self.mix_with_cosine(table, wi)
+    }
+}
+
+/// The half-width, in unit coordinates, of the box around a draw over which
+/// the slice density must be constant for the drawn-cell shortcut of
+/// `sample`: 2^-16, at least seven times the bound on the error of the
+/// recomputed (x', v') (see `finish_table_draw`), and small enough that
+/// tabulations of up to 2^15 cells per axis can use it.
+const CELL_MARGIN: f32 = 1.0 / 65536.0;
+
+/// Draws per chunk of the batch path of `sample_batch`: large enough to
+/// amortise the call, small enough for the stack.
+const BATCH_CHUNK: usize = 64;
+
+/// A slice's distribution and the rotation (cos φ, sin φ) about the normal
+/// from its half-vector axes to the shading frame.
+struct Slice<'a, D> {
+    dist: &'a D,
+    rotation: Vec2,
+    map: HalfMap,
+}
+
+impl<D> Slice<'_, D> {
+    /// The half vector of the table sample p = (x, v) in the shading frame,
+    /// (θ_h, φ_h) = ((π/2) v², 2π x) rotated, and its sin θ_h.
+    #[inline(always)]
+    fn half_of(&self, p: Vec2) -> (Vec3, f32) {
+        let (sin_t, cos_t) = self.map.angles(p.y);
+        let (sin_p, cos_p) = sin_cos_turns(p.x);
+        let local = Vec2::new(sin_t * cos_p, sin_t * sin_p);
+        let r = self.rotation;
+        let h = Vec3::new(
+            r.x * local.x - r.y * local.y,
+            r.y * local.x + r.x * local.y,
+            cos_t,
+        );
+        (h, sin_t)
+    }
+
+    /// The shading-frame vector `h` in the slice's axes (the inverse
+    /// rotation).
+    #[inline]
+    fn to_slice(&self, h: Vec3) -> Vec3 {
+        let r = self.rotation;
+        Vec3::new(r.x * h.x + r.y * h.y, r.x * h.y - r.y * h.x, h.z)
+    }
+}
+
+/// φ / 2π of a direction, in [0, 1): `acdf_core::geometry::phi` without
+/// libm (see [`fast_atan2`]) for the sampler's hot path.
+#[inline(always)]
+fn unit_azimuth(w: Vec3) -> f32 {
+    (azimuth(w) * (1.0 / TAU)).clamp(0.0, ONE_MINUS_EPSILON)
+}
+
+/// φ = atan2(y, x) of a direction in [0, 2π) by [`fast_atan2`]; the one
+/// azimuth the sampler, [`outgoing_cell`] and [`half_vector_cell`] share.
+#[inline(always)]
+fn azimuth(w: Vec3) -> f32 {
+    let a = fast_atan2(w.y, w.x);
+    let a = if a < 0.0 { a + TAU } else { a };
+    // a + 2π can round up to 2π for a tiny negative a.
+    if a >= TAU {
+        0.0
+    } else {
+        a
+    }
+}
+
+impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// With probability a (decided by u.x, then rescaled to [0, 1)) a cosine
+    /// draw, otherwise a table draw of (x, v) and wi = reflect(wo, h); the
+    /// reported density is the mixed pdf at the returned wi.
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        if !is_valid_outgoing(wo) {
+            return None;
+        }
+        self.sample_in(self.slice_for_mix(wo).as_ref(), wo, u)
+    }
+
+    /// The mixed density at wi, 0 for an invalid wo, a non-finite wi or wi at
+    /// or below the horizon.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if !is_valid_outgoing(wo) {
+            return 0.0;
+        }
+        self.pdf_in(self.slice_for_mix(wo).as_ref(), wo, wi)
+    }
+
+    /// [`sample`](BxdfSampler::sample) for each u, finding the slice once.
+    fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        if !is_valid_outgoing(wo) {
+            out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
+            return;
+        }
+        let slice = self.slice_for_mix(wo);
+        match slice {
+            // Without the cosine lobe every draw goes to the table, so the
+            // table draws can go through the distribution's batch path
+            // (interleaved searches) a chunk at a time.
+            Some(slice) if self.cosine_fraction == 0.0 => {
+                let mut table_u = [Vec2::ZERO; BATCH_CHUNK];
+                let mut drawn = [Sample2D::default(); BATCH_CHUNK];
+                for (uc, oc) in u.chunks(BATCH_CHUNK).zip(out.chunks_mut(BATCH_CHUNK)) {
+                    let n = uc.len().min(oc.len());
+                    for (t, &u) in table_u.iter_mut().zip(&uc[..n]) {
+                        *t = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+                    }
+                    slice.dist.sample_batch(&table_u[..n], &mut drawn[..n]);
+                    for (o, &s) in oc[..n].iter_mut().zip(&drawn[..n]) {
+                        *o = self.finish_table_draw(&slice, wo, s);
+                    }
+                }
+            }
+            _ => {
+                for (o, &u) in out.iter_mut().zip(u) {
+                    *o = self.sample_in(slice.as_ref(), wo, u);
+                }
+            }
+        }
+    }
+
+    /// [`pdf`](BxdfSampler::pdf) for each wi, finding the slice once.
+    fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        if !is_valid_outgoing(wo) {
+            out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
+            return;
+        }
+        let slice = self.slice_for_mix(wo);
+        for (o, &wi) in out.iter_mut().zip(wi) {
+            *o = self.pdf_in(slice.as_ref(), wo, wi);
+        }
+    }
+
+    /// The container of slices plus the tables of every slice built so far.
+    fn storage_bytes(&self) -> usize {
+        self.slices.capacity() * std::mem::size_of::<OnceLock<Result<B::Dist>>>()
+            + self
+                .built_slices()
+                .map(Distribution2D::storage_bytes)
+                .sum::<usize>()
+    }
+}
+
+/// The cell of `wo` in a resolution, as the sampler picks it: (θ_o index,
+/// φ_o index); for one φ_o cell the φ_o index is 0.
+pub fn outgoing_cell(res: &Resolution, wo: Vec3) -> (usize, usize) {
+    (
+        theta_o_cell(fast_atan2(sin_theta(wo), wo.z), res.theta_o),
+        if res.phi_o == 1 {
+            0
+        } else {
+            phi_o_cell(azimuth(wo), res.phi_o)
+        },
+    )
+}
+
+/// The cell (column, row) of the half vector `h` in a slice table of
+/// `n_phi_h` × `n_theta_h`, with φ_h measured from `phi_offset`.
+pub fn half_vector_cell(
+    h: Vec3,
+    phi_offset: f32,
+    n_phi_h: usize,
+    n_theta_h: usize,
+) -> (usize, usize) {
+    let v = HalfMap::new(n_theta_h).v_of(sin_theta(h), h.z);
+    let x = wrap_angle(azimuth(h) - phi_offset) / TAU;
+    (unit_cell(x, n_phi_h), unit_cell(v, n_theta_h))
+}
+
+#[cfg(test)]
+#[path = "sampler_tests.rs"]
+mod tests;

@@ -1,0 +1,501 @@
+//! Tabulating a BRDF over the half vector, and the cell geometry shared by
+//! the tabulation and the sampler.
+//!
+//! **Outgoing cells.** θ_o is spaced in u_o = sqrt(θ_o / (π/2)): cell i
+//! covers u_o in [i/n, (i+1)/n) and is tabulated at its centre, which puts
+//! more slices near the normal. φ_o cell j is *centred* on 2π j / n (it
+//! covers 2π (j ± 1/2) / n), so a single φ_o cell is centred on φ_o = 0, the
+//! frame an isotropic material is rotated into.
+//!
+//! **Half-vector axes.** A slice is a table over the unit square (x, v):
+//! columns x give φ_h = 2π x, rows v give θ_h = (π/2) v² (the square-root
+//! spacing of MERL tables, which packs rows near θ_h = 0 where specular peaks
+//! are narrow). The solid angle of the half vector is
+//! dω_h = sin θ_h dθ_h dφ_h = J dx dv with J = (π v)(2π) sin θ_h. The first
+//! row (the polar cap, θ_h < (π/2)/n²) is mapped to equal solid angle
+//! instead, so that densities stay bounded at θ_h = 0 ([`HalfMap`]).
+//!
+//! **Tabulated value.** Each cell holds the mean over 2×2 sub-points of
+//! g(x, v) = Y(f(wo, wi)) cos θ_i · 4 (wo·h) · J(v), with wi = reflect(wo, h)
+//! and Y the luminance: the density of incident directions,
+//! Y(f) cos θ_i dω_i with dω_i = 4 |wo·h| dω_h, written in (x, v). The table
+//! therefore integrates to the luminance albedo of wo. Half vectors with
+//! wo·h ≤ 0 or whose wi is at or below the horizon give 0. A value that comes
+//! out NaN, infinite or negative (which the [`Brdf`] contract excludes) is
+//! sanitised to 0, so a tabulated slice always passes
+//! [`validate_table`](acdf_core::validate_table).
+
+use crate::Resolution;
+use acdf_core::geometry::{reflect, spherical_direction};
+use acdf_core::{Brdf, Vec3};
+use std::f32::consts::{FRAC_PI_2, PI, TAU};
+
+/// Sub-points per cell along each half-vector axis in [`tabulate_slice`].
+pub const SUBSAMPLES: usize = 2;
+
+/// The cell of `x` in `n` uniform cells over [0, 1): floor(x n) clamped to
+/// [0, n-1] (NaN and negatives give 0).
+#[inline(always)]
+pub fn unit_cell(x: f32, n: usize) -> usize {
+    ((x * n as f32) as usize).min(n.max(1) - 1)
+}
+
+/// u_o = sqrt(θ_o / (π/2)), the coordinate in which θ_o cells are uniform.
+#[inline]
+pub fn theta_o_to_unit(theta_o: f32) -> f32 {
+    (theta_o.max(0.0) / FRAC_PI_2).sqrt()
+}
+
+/// The θ_o cell of an outgoing direction with polar angle `theta_o`.
+#[inline]
+pub fn theta_o_cell(theta_o: f32, n_theta_o: usize) -> usize {
+    unit_cell(theta_o_to_unit(theta_o), n_theta_o)
+}
+
+/// The θ_o at the centre of cell i: (π/2) ((i + 1/2) / n)².
+#[inline]
+pub fn theta_o_center(i: usize, n_theta_o: usize) -> f32 {
+    let u = (i as f32 + 0.5) / n_theta_o as f32;
+    FRAC_PI_2 * u * u
+}
+
+/// The φ_o cell whose centre 2π j / n is nearest to `phi_o`.
+#[inline]
+pub fn phi_o_cell(phi_o: f32, n_phi_o: usize) -> usize {
+    let j = (phi_o / TAU * n_phi_o as f32 + 0.5).floor();
+    // `as usize` saturates NaN and negatives to 0; the modulo folds the
+    // last half cell back onto cell 0.
+    (j as usize) % n_phi_o.max(1)
+}
+
+/// The φ_o at the centre of cell j: 2π j / n.
+#[inline]
+pub fn phi_o_center(j: usize, n_phi_o: usize) -> f32 {
+    TAU * j as f32 / n_phi_o as f32
+}
+
+/// θ_h = (π/2) v² for the row coordinate v in [0, 1] (the map outside the
+/// polar cap row; see [`HalfMap`] for the full map).
+#[inline(always)]
+pub fn theta_h_of(v: f32) -> f32 {
+    FRAC_PI_2 * v * v
+}
+
+/// v = sqrt(θ_h / (π/2)), the inverse of [`theta_h_of`].
+#[inline(always)]
+pub fn v_of_theta_h(theta_h: f32) -> f32 {
+    (theta_h.max(0.0) / FRAC_PI_2).sqrt()
+}
+
+/// J(v) = |∂(θ_h, φ_h)/∂(x, v)| sin θ_h = (π v)(2π) sin θ_h, so that
+/// dω_h = J dx dv under θ_h = (π/2) v² (outside the polar cap row; see
+/// [`HalfMap::jacobian`]).
+#[inline(always)]
+pub fn half_jacobian(v: f32, sin_theta_h: f32) -> f32 {
+    PI * v * TAU * sin_theta_h
+}
+
+/// Coefficients c_k of atan(a) ≈ a Σ c_k a^{2k} on [0, 1]: the Chebyshev
+/// interpolant of atan(√t)/√t in t = a² at degree 7, converted to powers of
+/// t. Its error is below 6.4e-8 rad, under the 1.2e-7 rad of `f32` rounding
+/// of a result near π, so the approximation adds nothing a caller can see
+/// beyond an ulp or two (the tests check 4e-7 rad against `f64`).
+const ATAN_COEFFICIENTS: [f32; 8] = [
+    0.999_999_9,
+    -0.333_318_13,
+    0.199_669_62,
+    -0.140_032_9,
+    0.098_688_65,
+    -0.058_829_75,
+    0.023_780_52,
+    -0.004_559_792,
+];
+
+/// atan(a) for a in [0, 1], by the polynomial of [`ATAN_COEFFICIENTS`].
+#[inline(always)]
+fn atan_unit(a: f32) -> f32 {
+    let t = a * a;
+    let c = &ATAN_COEFFICIENTS;
+    let p = c[7];
+    let p = p * t + c[6];
+    let p = p * t + c[5];
+    let p = p * t + c[4];
+    let p = p * t + c[3];
+    let p = p * t + c[2];
+    let p = p * t + c[1];
+    let p = p * t + c[0];
+    a * p
+}
+
+/// atan2(y, x) in [-π, π] without a libm call, to within 4e-7 rad; 0 for
+/// (0, 0) and for NaN. The sampler's inverse map uses it in `sample` and
+/// `pdf` alike, so the two stay consistent exactly; its error only moves
+/// cell boundaries by a fraction of an ulp of the angle.
+#[inline(always)]
+pub fn fast_atan2(y: f32, x: f32) -> f32 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (lo, hi) = if ay > ax { (ax, ay) } else { (ay, ax) };
+    // lo / hi is NaN for 0/0 and for NaN input; the comparison sends both
+    // to 0.
+    let a = lo / hi;
+    let a = if a >= 0.0 { a.min(1.0) } else { 0.0 };
+    let mut r = atan_unit(a);
+    if ay > ax {
+        r = FRAC_PI_2 - r;
+    }
+    if x < 0.0 {
+        r = PI - r;
+    }
+    if y < 0.0 {
+        -r
+    } else {
+        r
+    }
+}
+
+/// (sin 2πt, cos 2πt) for an angle t in turns, without a libm call: the
+/// nearest quarter turn q is split off exactly and the rest (at most π/4 in
+/// magnitude) goes to Taylor polynomials of degree 9 (sine) and 8
+/// (cosine), whose truncation errors at π/4 are 1.8e-9 and 2.5e-8. The
+/// reduction is exact for |t| < 2, so the error is that of `f32` rounding,
+/// a few 1e-8 absolute.
+#[inline(always)]
+pub fn sin_cos_turns(t: f32) -> (f32, f32) {
+    // floor(4t + 1/2) by truncation of a positive number (no libm `round`
+    // without SSE4.1); exact for |t| < 2.
+    let qi = (t * 4.0 + 8.5) as i32 - 8;
+    let a = (t - qi as f32 * 0.25) * TAU;
+    let a2 = a * a;
+    let s = a
+        * (1.0
+            + a2 * (-1.0 / 6.0
+                + a2 * (1.0 / 120.0 + a2 * (-1.0 / 5040.0 + a2 * (1.0 / 362_880.0)))));
+    let c = 1.0 + a2 * (-0.5 + a2 * (1.0 / 24.0 + a2 * (-1.0 / 720.0 + a2 * (1.0 / 40_320.0))));
+    // Rotate by q quarter turns, (s, c) -> (c, -s) -> (-s, -c) -> (-c, s),
+    // with selects and sign flips instead of a four-way branch.
+    let q = qi as u32;
+    let (s, c) = if q & 1 == 1 { (c, s) } else { (s, c) };
+    let sin_sign = (q & 2) << 30;
+    let cos_sign = (q.wrapping_add(1) & 2) << 30;
+    (
+        f32::from_bits(s.to_bits() ^ sin_sign),
+        f32::from_bits(c.to_bits() ^ cos_sign),
+    )
+}
+
+/// The half-vector row map of a slice with `n_theta_h` rows: v ↦ θ_h.
+///
+/// Rows 1.. follow θ_h = (π/2) v² ([`theta_h_of`]). The first row, the
+/// polar cap θ_h < θ_1 = (π/2) / n², is mapped to equal solid angle
+/// instead: 1 - cos θ_h = (v / v_1)(1 - cos θ_1) with v_1 = 1 / n. With
+/// (π/2) v² down to the pole, a density constant in (x, v) would be
+/// p_ω ∝ 1 / (v sin θ_h) per solid angle, infinite at θ_h = 0; with the
+/// cap it is bounded (constant across the cap), and the map stays
+/// continuous at v_1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HalfMap {
+    /// v_1 = 1 / n_theta_h, the top of the cap row.
+    v1: f32,
+    /// θ_1 = (π/2) v_1².
+    theta1: f32,
+    /// 1 - cos θ_1 = 2 sin²(θ_1 / 2), without cancellation.
+    one_minus_cos1: f32,
+}
+
+impl HalfMap {
+    /// The map of a slice with `n_theta_h` rows (at least 1).
+    pub fn new(n_theta_h: usize) -> Self {
+        let v1 = 1.0 / n_theta_h.max(1) as f32;
+        let theta1 = theta_h_of(v1);
+        let s = (0.5 * theta1).sin();
+        HalfMap {
+            v1,
+            theta1,
+            one_minus_cos1: 2.0 * s * s,
+        }
+    }
+
+    /// v_1 = 1 / n_theta_h, the top of the polar cap row.
+    #[inline(always)]
+    pub fn cap_top(&self) -> f32 {
+        self.v1
+    }
+
+    /// (sin θ_h, cos θ_h) for the row coordinate v in [0, 1].
+    #[inline]
+    pub fn angles(&self, v: f32) -> (f32, f32) {
+        if v >= self.v1 {
+            // θ_h = (π/2) v² is v²/4 of a turn.
+            sin_cos_turns(0.25 * v * v)
+        } else {
+            let one_minus_cos = (v / self.v1) * self.one_minus_cos1;
+            let cos = 1.0 - one_minus_cos;
+            // sin² = (1 - cos)(1 + cos), exact near the pole.
+            ((one_minus_cos * (1.0 + cos)).max(0.0).sqrt(), cos)
+        }
+    }
+
+    /// The row coordinate v of a unit half vector with the given sin θ_h
+    /// and cos θ_h (the inverse of [`angles`](Self::angles)).
+    #[inline]
+    pub fn v_of(&self, sin_h: f32, cos_h: f32) -> f32 {
+        let theta = fast_atan2(sin_h, cos_h);
+        if theta >= self.theta1 {
+            v_of_theta_h(theta)
+        } else {
+            // 1 - cos θ = sin² θ / (1 + cos θ), exact near the pole.
+            let one_minus_cos = sin_h * sin_h / (1.0 + cos_h);
+            (self.v1 * one_minus_cos / self.one_minus_cos1).min(self.v1)
+        }
+    }
+
+    /// J(v) = dω_h / (dx dv): (π v)(2π) sin θ_h outside the cap and the
+    /// constant 2π (1 - cos θ_1) / v_1 inside it.
+    #[inline]
+    pub fn jacobian(&self, v: f32, sin_h: f32) -> f32 {
+        if v >= self.v1 {
+            half_jacobian(v, sin_h)
+        } else {
+            TAU * self.one_minus_cos1 / self.v1
+        }
+    }
+}
+
+/// The outgoing direction at the centre of slice (i, j).
+pub fn slice_outgoing(res: &Resolution, theta_o_index: usize, phi_o_index: usize) -> Vec3 {
+    spherical_direction(
+        theta_o_center(theta_o_index, res.theta_o),
+        phi_o_center(phi_o_index, res.phi_o),
+    )
+}
+
+/// The table of slice (θ_o cell, φ_o cell): `res.theta_h` rows of
+/// `res.phi_h` values, φ_h absolute (for one φ_o cell the slice's wo has
+/// φ_o = 0, so absolute and relative φ_h coincide). See the module
+/// documentation for what a value is.
+pub fn tabulate_slice(
+    brdf: &dyn Brdf,
+    res: &Resolution,
+    theta_o_index: usize,
+    phi_o_index: usize,
+) -> Vec<f32> {
+    tabulate_for(
+        brdf,
+        slice_outgoing(res, theta_o_index, phi_o_index),
+        res.theta_h,
+        res.phi_h,
+    )
+}
+
+/// The half-vector table for an arbitrary unit `wo`: `n_theta_h` rows of
+/// `n_phi_h` values, φ_h absolute. Empty if either count is 0.
+pub fn tabulate_for(brdf: &dyn Brdf, wo: Vec3, n_theta_h: usize, n_phi_h: usize) -> Vec<f32> {
+    let mut values = vec![0.0f32; n_theta_h * n_phi_h];
+    if values.is_empty() {
+        return values;
+    }
+    let sub = SUBSAMPLES;
+    let inv_sub = 1.0 / sub as f32;
+    // Sub-point columns: (cos φ_h, sin φ_h).
+    let columns: Vec<(f32, f32)> = (0..n_phi_h * sub)
+        .map(|c| {
+            let x = (c as f32 + 0.5) / (n_phi_h * sub) as f32;
+            let (s, co) = (TAU * x).sin_cos();
+            (co, s)
+        })
+        .collect();
+    let weight = 1.0 / (sub * sub) as f64;
+    let map = HalfMap::new(n_theta_h);
+    for (iy, row) in values.chunks_exact_mut(n_phi_h).enumerate() {
+        for t in 0..sub {
+            let v = (iy as f32 + (t as f32 + 0.5) * inv_sub) / n_theta_h as f32;
+            let (sin_h, cos_h) = map.angles(v);
+            let jacobian = map.jacobian(v, sin_h);
+            for (ix, cell) in row.iter_mut().enumerate() {
+                let mut acc = 0.0f64;
+                for &(cos_p, sin_p) in &columns[ix * sub..(ix + 1) * sub] {
+                    let h = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
+                    acc += incident_density(brdf, wo, h) as f64 * jacobian as f64;
+                }
+                let mean = *cell as f64 + acc * weight;
+                *cell = mean as f32;
+            }
+        }
+    }
+    for v in &mut values {
+        if !(v.is_finite() && *v >= 0.0) {
+            *v = 0.0;
+        }
+    }
+    values
+}
+
+/// Y(f(wo, wi)) cos θ_i · 4 (wo·h) for wi = reflect(wo, h): the density of
+/// incident directions per unit solid angle of the half vector; 0 when
+/// wo·h ≤ 0 or wi is at or below the horizon, and for non-finite results.
+#[inline]
+pub fn incident_density(brdf: &dyn Brdf, wo: Vec3, h: Vec3) -> f32 {
+    let wo_h = wo.dot(h);
+    if !(wo_h > 0.0) {
+        return 0.0;
+    }
+    let wi = reflect(wo, h);
+    if !(wi.z > 0.0) {
+        return 0.0;
+    }
+    let g = brdf.luminance(wo, wi) * wi.z * 4.0 * wo_h;
+    if g.is_finite() && g > 0.0 {
+        g
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use acdf_core::geometry::{phi, theta};
+    use acdf_core::Rgb;
+
+    struct Lambert;
+    impl Brdf for Lambert {
+        fn name(&self) -> &str {
+            "lambert"
+        }
+        fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+            if wo.z > 0.0 && wi.z > 0.0 {
+                Rgb::splat(std::f32::consts::FRAC_1_PI)
+            } else {
+                Rgb::ZERO
+            }
+        }
+        fn is_isotropic(&self) -> bool {
+            true
+        }
+    }
+
+    struct Broken;
+    impl Brdf for Broken {
+        fn name(&self) -> &str {
+            "broken"
+        }
+        fn eval(&self, _: Vec3, wi: Vec3) -> Rgb {
+            if wi.x > 0.0 {
+                Rgb::splat(f32::NAN)
+            } else {
+                Rgb::splat(-1.0)
+            }
+        }
+        fn is_isotropic(&self) -> bool {
+            true
+        }
+    }
+
+    #[test]
+    fn cells_and_centres_agree() {
+        for n in [1, 7, 32] {
+            for i in 0..n {
+                assert_eq!(theta_o_cell(theta_o_center(i, n), n), i);
+                assert_eq!(phi_o_cell(phi_o_center(i, n), n), i);
+            }
+        }
+        assert_eq!(theta_o_cell(0.0, 32), 0);
+        assert_eq!(theta_o_cell(FRAC_PI_2, 32), 31);
+        assert_eq!(theta_o_cell(f32::NAN, 32), 0);
+        assert_eq!(phi_o_cell(TAU - 1e-4, 16), 0);
+        assert_eq!(phi_o_cell(f32::NAN, 16), 0);
+        assert_eq!(phi_o_cell(3.0, 1), 0);
+        let wo = slice_outgoing(&Resolution::PAPER, 5, 3);
+        assert_eq!(theta_o_cell(theta(wo), 32), 5);
+        assert_eq!(phi_o_cell(phi(wo), 16), 3);
+        for v in [0.0, 0.1, 0.5, 1.0] {
+            approx::assert_relative_eq!(v_of_theta_h(theta_h_of(v)), v, max_relative = 1e-6);
+        }
+    }
+
+    /// The table integrates (midpoint rule over its cells) to the luminance
+    /// albedo; for a Lambertian surface of albedo 1 that is 1, up to the
+    /// discretisation of the 64 × 16 table (about 1%).
+    #[test]
+    fn lambert_table_integrates_to_the_albedo() {
+        for theta_o in [0.0f32, 0.5, 1.2] {
+            let wo = spherical_direction(theta_o, 0.3);
+            let t = tabulate_for(&Lambert, wo, 64, 16);
+            let integral: f64 = t.iter().map(|&v| v as f64).sum::<f64>() / t.len() as f64;
+            assert!((integral - 1.0).abs() < 0.02, "{theta_o}: {integral}");
+        }
+    }
+
+    /// The cap map is continuous at v_1, inverts, and its Jacobian is the
+    /// derivative of the solid angle: 2π d(1 - cos θ_h)/dv.
+    #[test]
+    fn half_map_is_continuous_and_inverts() {
+        let map = HalfMap::new(256);
+        let v1 = 1.0 / 256.0;
+        let (below, above) = (map.angles(v1 * (1.0 - 1e-6)), map.angles(v1));
+        approx::assert_relative_eq!(below.0, above.0, max_relative = 1e-4);
+        for v in [0.0, 1e-5, 0.5 * v1, 0.99 * v1, v1, 0.01, 0.3, 0.999] {
+            let (s, c) = map.angles(v);
+            approx::assert_relative_eq!(s * s + c * c, 1.0, max_relative = 1e-6);
+            approx::assert_abs_diff_eq!(map.v_of(s, c), v, epsilon = 2e-6 * v.max(v1));
+            // d(1 - cos θ)/dv by a central difference in f64.
+            let dv = 1e-3 * v.max(v1) as f64;
+            let omc = |v: f64| {
+                if v >= v1 as f64 {
+                    1.0 - (std::f64::consts::FRAC_PI_2 * v * v).cos()
+                } else {
+                    v / v1 as f64 * map.one_minus_cos1 as f64
+                }
+            };
+            let (lo, hi) = if v >= v1 {
+                (v as f64, v as f64 + dv)
+            } else {
+                (v as f64, v as f64 + dv.min(v1 as f64 - v as f64))
+            };
+            if hi > lo {
+                let derivative = std::f64::consts::TAU * (omc(hi) - omc(lo)) / (hi - lo);
+                approx::assert_relative_eq!(
+                    map.jacobian(v, s) as f64,
+                    derivative,
+                    max_relative = 2e-3
+                );
+            }
+        }
+        assert!(map.jacobian(0.0, 0.0) > 0.0);
+    }
+
+    /// The polynomial arctangent and sine/cosine are within their stated
+    /// bounds of the `f64` functions over a dense grid of every quadrant.
+    #[test]
+    fn fast_trigonometry_is_accurate() {
+        let mut worst_atan = 0.0f64;
+        for k in 0..20_000 {
+            let a = k as f64 / 20_000.0 * std::f64::consts::TAU;
+            for r in [1e-6, 0.3, 1.0, 7.0] {
+                let (y, x) = ((r * a.sin()) as f32, (r * a.cos()) as f32);
+                let exact = (y as f64).atan2(x as f64);
+                worst_atan = worst_atan.max((fast_atan2(y, x) as f64 - exact).abs());
+            }
+        }
+        assert!(worst_atan < 4e-7, "atan2 error {worst_atan}");
+        assert_eq!(fast_atan2(0.0, 0.0), 0.0);
+        assert_eq!(fast_atan2(f32::NAN, 1.0), 0.0);
+        let mut worst_sin_cos = 0.0f64;
+        for k in 0..=40_000 {
+            let t = k as f32 / 40_000.0 * 1.5 - 0.25;
+            let (s, c) = sin_cos_turns(t);
+            let a = t as f64 * std::f64::consts::TAU;
+            worst_sin_cos = worst_sin_cos
+                .max((s as f64 - a.sin()).abs())
+                .max((c as f64 - a.cos()).abs());
+        }
+        assert!(worst_sin_cos < 2e-7, "sin/cos error {worst_sin_cos}");
+    }
+
+    #[test]
+    fn invalid_values_are_sanitised() {
+        let t = tabulate_slice(&Broken, &Resolution::new(4, 1, 8, 8).unwrap(), 2, 0);
+        assert!(t.iter().all(|v| *v == 0.0));
+        assert!(tabulate_for(&Lambert, Vec3::Z, 0, 4).is_empty());
+    }
+}
