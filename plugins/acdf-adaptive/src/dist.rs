@@ -531,6 +531,21 @@ impl AdaptiveCdf2D {
 /// The longest curve whose segment is found by comparing every vertex.
 const LINEAR_CURVE: usize = 32;
 
+/// `Curve::segment_of` (the segment i with x_i <= x < x_{i+1}, the last for
+/// x >= 1) for a curve of at least two vertices, with the vertices at or
+/// below x counted without branches when the curve is short (see
+/// [`sample_curve`]); the same segment.
+#[inline(always)]
+fn segment_of(curve: Curve<'_>, x: f32) -> usize {
+    let last = curve.x.len() - 2;
+    let at_or_below = if curve.x.len() <= LINEAR_CURVE {
+        curve.x.iter().map(|&v| (v <= x) as usize).sum()
+    } else {
+        curve.x.partition_point(|&v| v <= x)
+    };
+    at_or_below.saturating_sub(1).min(last)
+}
+
 /// The curve's sample for `u`: the segment i with c_i <= u < c_{i+1}, then
 /// x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i) in `f64`, clamped
 /// into [x_i, x_{i+1}), and the segment's density. The arithmetic is
@@ -593,12 +608,18 @@ impl Distribution2D for AdaptiveCdf2D {
             return 0.0;
         }
         let m = self.marginal_curve();
-        let j = m.segment_of(p.y);
+        let j = segment_of(m, p.y);
         let py = m.density(j);
         if py == 0.0 {
             return 0.0;
         }
-        py * self.conditional(j).pdf(p.x)
+        let c = self.conditional(j);
+        let px = if c.x.len() < 2 {
+            1.0
+        } else {
+            c.density(segment_of(c, p.x))
+        };
+        py * px
     }
 
     /// (P_j(x), P_marginal(y)).
@@ -676,6 +697,18 @@ mod fast_sampling_tests {
             d.sample_batch(&u, &mut out);
             for (o, &u) in out.iter().zip(&u) {
                 assert_eq!(*o, d.sample(u));
+            }
+            // The counting segment search gives the curves' density.
+            for &u in &u[..500] {
+                let m = d.marginal_curve();
+                let j = m.segment_of(u.y);
+                let py = m.density(j);
+                let expected = if py == 0.0 || u.is_nan() {
+                    0.0
+                } else {
+                    py * d.conditional(j).pdf(u.x)
+                };
+                assert_eq!(d.pdf(u), expected, "{u}");
             }
             // Where the box is said to lie in one segment, the density at its
             // corners is the density at its centre; most boxes qualify.
