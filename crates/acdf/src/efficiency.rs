@@ -357,8 +357,6 @@ mod tests {
         Lambert::new("lambert", Rgb::splat(rho)).unwrap()
     }
 
-    /// f = ρ/π: the cosine sampler's estimator of the reflected luminance.
-
     /// A constant environment makes Y_k constant for cosine sampling of a
     /// Lambertian surface: the variance must vanish and the estimate equal ρ.
     struct White;

@@ -4,7 +4,7 @@
 
 use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
 use crate::AdaptiveCdf2D;
-use acdf_core::{Brdf, Result};
+use acdf_core::{Brdf, Result, Vec2};
 use acdf_uniform::{Resolution, SliceBuilder, TabulatedBrdfSampler};
 use std::sync::Arc;
 
@@ -57,6 +57,14 @@ impl SliceBuilder for AdaptiveBuilder {
             self.tolerance,
             1,
         )
+    }
+
+    /// The box lies inside one marginal and one conditional segment (see
+    /// [`AdaptiveCdf2D::same_segment_around`]), so the drawn segment's
+    /// density is the density at the recomputed point.
+    #[inline]
+    fn same_cell_around(&self, dist: &AdaptiveCdf2D, p: Vec2, margin: Vec2) -> bool {
+        dist.same_segment_around(p, margin)
     }
 }
 
