@@ -52,13 +52,11 @@ fn config() -> SamplerConfig {
 }
 
 fn run(stem: &str) {
-    let Some(dir) = acdf_materials::shared_data_dir() else {
-        println!("skipping: shared data not found (set ACDF_SHARED_DATA)");
+    let Some(dir) = acdf_materials::rgl::shared_dir() else {
+        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
         return;
     };
-    let path = dir
-        .join("rgl-material-database")
-        .join(format!("{stem}.bsdf"));
+    let path = dir.join(format!("{stem}.bsdf"));
     if !path.is_file() {
         println!("skipping: {} not found", path.display());
         return;

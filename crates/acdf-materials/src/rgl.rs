@@ -57,6 +57,28 @@ use glam::{DVec2, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::path::{Path, PathBuf};
 
+/// The folder of the RGL files inside the shared data directory.
+pub const DATA_DIR: &str = "rgl-material-database";
+
+/// The stems of the seven isotropic RGL files in the shared data (each is
+/// `<stem>.bsdf` in [`DATA_DIR`]).
+pub const SHARED_FILES: [&str; 7] = [
+    "acrylic_felt_white_rgb",
+    "cg_sunflower_rgb",
+    "chm_mint_rgb",
+    "ilm_l3_37_matte_rgb",
+    "ilm_solo_m_68_rgb",
+    "paper_white_rgb",
+    "vch_golden_yellow_rgb",
+];
+
+/// The shared folder of RGL files, if the shared data is present (see
+/// [`crate::shared_data_dir`]).
+pub fn shared_dir() -> Option<PathBuf> {
+    let dir = crate::shared_data_dir()?.join(DATA_DIR);
+    dir.is_dir().then_some(dir)
+}
+
 /// Everything that can be wrong with an RGL tensor file.
 #[derive(Debug, thiserror::Error)]
 pub enum RglError {

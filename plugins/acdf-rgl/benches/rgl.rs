@@ -53,15 +53,13 @@ fn bilinear(c: &mut Criterion) {
 }
 
 fn rgl(c: &mut Criterion) {
-    let Some(dir) = acdf_materials::shared_data_dir() else {
+    let Some(dir) = acdf_materials::rgl::shared_dir() else {
         println!("skipping the RGL groups: shared data not found (set ACDF_SHARED_DATA)");
         return;
     };
     let wo = spherical_direction(30f32.to_radians(), 1.0);
     for stem in ["paper_white_rgb", "chm_mint_rgb"] {
-        let path = dir
-            .join("rgl-material-database")
-            .join(format!("{stem}.bsdf"));
+        let path = dir.join(format!("{stem}.bsdf"));
         let Ok(brdf) = RglBrdf::open(&path) else {
             println!("skipping {stem}: {} does not load", path.display());
             continue;

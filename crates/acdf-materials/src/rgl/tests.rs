@@ -6,20 +6,7 @@ use acdf_core::{Distribution2D, Vec2};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 
-fn rgl_dir() -> Option<PathBuf> {
-    let dir = crate::shared_data_dir()?.join("rgl-material-database");
-    dir.is_dir().then_some(dir)
-}
-
-const FILES: [&str; 7] = [
-    "acrylic_felt_white_rgb",
-    "cg_sunflower_rgb",
-    "chm_mint_rgb",
-    "ilm_l3_37_matte_rgb",
-    "ilm_solo_m_68_rgb",
-    "paper_white_rgb",
-    "vch_golden_yellow_rgb",
-];
+use super::{shared_dir as rgl_dir, SHARED_FILES as FILES};
 
 fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
