@@ -30,7 +30,8 @@ pub enum Check {
     Construction,
     /// `invert` is not the inverse of `sample`, or `integral()` is wrong.
     Inverse,
-    /// `sample_batch` / `pdf_batch` disagree with the one-at-a-time calls.
+    /// `sample_batch` / `pdf_batch` / `sample_each` / `pdf_each` disagree
+    /// with the one-at-a-time calls.
     Batch,
     /// The code under test panicked.
     Panic,

@@ -412,6 +412,7 @@ fn goodness_of_fit(
                     );
                 }
             }
+            check_each(&mut report, &case, sampler, wo, &us[..m.min(64)]);
         }
         for k in 0..m {
             let Some(s) = out[k] else {
@@ -766,4 +767,50 @@ where
         }
     }
     report
+}
+
+/// The outgoing direction of lane k in [`check_each`]: `wo` itself, `wo`
+/// turned about the normal, or (every fourth lane) `wo` mirrored below the
+/// horizon, which every entry point must refuse.
+fn lane_outgoing(wo: Vec3, k: usize) -> Vec3 {
+    match k % 4 {
+        0 => wo,
+        1 => Vec3::new(wo.x, wo.y, -wo.z),
+        _ => {
+            let (s, c) = (k as f32 * 0.7).sin_cos();
+            Vec3::new(c * wo.x - s * wo.y, s * wo.x + c * wo.y, wo.z)
+        }
+    }
+}
+
+/// `sample_each` and `pdf_each`, with a different outgoing direction in
+/// every lane, agree with `sample` and `pdf` pair by pair.
+fn check_each(report: &mut Report, case: &str, sampler: &dyn BxdfSampler, wo: Vec3, us: &[Vec2]) {
+    let wos: Vec<Vec3> = (0..us.len()).map(|k| lane_outgoing(wo, k)).collect();
+    let mut each = vec![None; us.len()];
+    sampler.sample_each(&wos, us, &mut each);
+    let wis: Vec<Vec3> = each.iter().map(|s| s.map_or(Vec3::Z, |s| s.wi)).collect();
+    let mut pdfs = vec![0f32; us.len()];
+    sampler.pdf_each(&wos, &wis, &mut pdfs);
+    for k in 0..us.len() {
+        let single = sampler.sample(wos[k], us[k]);
+        if !close_sample(&single, &each[k]) {
+            report.fail(
+                Check::Batch,
+                case,
+                format!(
+                    "sample_each gave {:?} for wo {}, sample gave {single:?}",
+                    each[k], wos[k]
+                ),
+            );
+        }
+        let p = sampler.pdf(wos[k], wis[k]);
+        if !close(p, pdfs[k]) {
+            report.fail(
+                Check::Batch,
+                case,
+                format!("pdf_each gave {} for wo {}, pdf gave {p}", pdfs[k], wos[k]),
+            );
+        }
+    }
 }

@@ -455,3 +455,47 @@ fn rejects_constructor_that_accepts_bad_tables() {
     );
     assert_rejected(&report, Check::Construction);
 }
+
+// ------------------------------------------- one wo for a whole wavefront
+
+/// A lobe around the mirror direction whose `sample_each` and `pdf_each`
+/// use the first pair's wo for every pair: a batch path that hoisted the
+/// slice lookup out of its loop. Its one-at-a-time calls are correct, so
+/// only the batch check can see it.
+struct FirstWoForAll(TiltedLobeSampler);
+
+impl BxdfSampler for FirstWoForAll {
+    fn name(&self) -> &str {
+        "mutant-first-wo-for-all"
+    }
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        self.0.sample(wo, u)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.0.pdf(wo, wi)
+    }
+    fn storage_bytes(&self) -> usize {
+        0
+    }
+    fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        if let Some(&first) = wo.first() {
+            self.0.sample_batch(first, u, out);
+        }
+    }
+    fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        if let Some(&first) = wo.first() {
+            self.0.pdf_batch(first, wi, out);
+        }
+    }
+}
+
+#[test]
+fn rejects_sample_each_with_one_wo_for_all_pairs() {
+    let report = check_sampler(
+        "mutant_first_wo_for_all",
+        &FirstWoForAll(TiltedLobeSampler { exponent: 20.0 }),
+        None,
+        &sampler_config(),
+    );
+    assert_rejected(&report, Check::Batch);
+}

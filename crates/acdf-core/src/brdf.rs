@@ -37,6 +37,31 @@ pub trait Brdf: Send + Sync {
     fn luminance(&self, wo: Vec3, wi: Vec3) -> f32 {
         luminance(self.eval(wo, wi))
     }
+
+    /// The luminance over a ring of half vectors at one θ_h: for each column
+    /// c with `columns[c]` = (cos φ_c, sin φ_c),
+    /// out\[c\] = Y(f_r(wo, wi_c)) with h_c = (sin θ_h cos φ_c, sin θ_h sin φ_c,
+    /// cos θ_h) and wi_c = 2 (wo·h_c) h_c − wo, the mirror of wo about h_c.
+    ///
+    /// Tabulating over the half vector evaluates whole rings, and a source
+    /// can hoist the work that depends only on θ_h and wo out of the loop
+    /// (a measured table's θ_h index, say). `wo`, (sin θ_h, cos θ_h) and the
+    /// columns are meant to be unit; an override must give what the default
+    /// gives, [`luminance`](Brdf::luminance) at each (wo, wi_c), up to float
+    /// rounding and the error of its trigonometry. Only
+    /// min(columns.len(), out.len()) values are written.
+    fn luminance_half_ring(
+        &self,
+        wo: Vec3,
+        (sin_theta_h, cos_theta_h): (f32, f32),
+        columns: &[(f32, f32)],
+        out: &mut [f32],
+    ) {
+        for (&(cos_phi, sin_phi), y) in columns.iter().zip(out.iter_mut()) {
+            let h = Vec3::new(sin_theta_h * cos_phi, sin_theta_h * sin_phi, cos_theta_h);
+            *y = self.luminance(wo, crate::geometry::reflect(wo, h));
+        }
+    }
 }
 
 impl<T: Brdf + ?Sized> Brdf for Box<T> {
@@ -49,6 +74,18 @@ impl<T: Brdf + ?Sized> Brdf for Box<T> {
     fn is_isotropic(&self) -> bool {
         (**self).is_isotropic()
     }
+    fn luminance(&self, wo: Vec3, wi: Vec3) -> f32 {
+        (**self).luminance(wo, wi)
+    }
+    fn luminance_half_ring(
+        &self,
+        wo: Vec3,
+        half: (f32, f32),
+        columns: &[(f32, f32)],
+        out: &mut [f32],
+    ) {
+        (**self).luminance_half_ring(wo, half, columns, out)
+    }
 }
 
 impl<T: Brdf + ?Sized> Brdf for std::sync::Arc<T> {
@@ -60,6 +97,18 @@ impl<T: Brdf + ?Sized> Brdf for std::sync::Arc<T> {
     }
     fn is_isotropic(&self) -> bool {
         (**self).is_isotropic()
+    }
+    fn luminance(&self, wo: Vec3, wi: Vec3) -> f32 {
+        (**self).luminance(wo, wi)
+    }
+    fn luminance_half_ring(
+        &self,
+        wo: Vec3,
+        half: (f32, f32),
+        columns: &[(f32, f32)],
+        out: &mut [f32],
+    ) {
+        (**self).luminance_half_ring(wo, half, columns, out)
     }
 }
 

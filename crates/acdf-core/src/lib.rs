@@ -19,6 +19,7 @@
 pub mod brdf;
 pub mod distribution;
 pub mod error;
+pub mod fast;
 pub mod geometry;
 pub mod sampler;
 pub mod warp;

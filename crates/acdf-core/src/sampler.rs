@@ -59,6 +59,24 @@ pub trait BxdfSampler: Send + Sync {
             *o = self.pdf(wo, wi);
         }
     }
+
+    /// Sample many (wo, u) pairs, each with its own outgoing direction (a
+    /// wavefront renderer's batch of shading points): `out[k] =
+    /// sample(wo[k], u[k])` for every `k` below the shortest length. Fast
+    /// samplers override it to overlap the draws.
+    fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        for ((o, &wo), &u) in out.iter_mut().zip(wo).zip(u) {
+            *o = self.sample(wo, u);
+        }
+    }
+
+    /// Densities of many (wo, wi) pairs: `out[k] = pdf(wo[k], wi[k])` for
+    /// every `k` below the shortest length.
+    fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        for ((o, &wo), &wi) in out.iter_mut().zip(wo).zip(wi) {
+            *o = self.pdf(wo, wi);
+        }
+    }
 }
 
 impl<T: BxdfSampler + ?Sized> BxdfSampler for Box<T> {
@@ -79,5 +97,11 @@ impl<T: BxdfSampler + ?Sized> BxdfSampler for Box<T> {
     }
     fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
         (**self).pdf_batch(wo, wi, out)
+    }
+    fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        (**self).sample_each(wo, u, out)
+    }
+    fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        (**self).pdf_each(wo, wi, out)
     }
 }

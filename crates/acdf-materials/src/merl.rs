@@ -37,11 +37,21 @@
 //! θ_h and φ_d; 0 when that whole θ_d column is unmeasured. Lookups never
 //! return a negative value. Tables start with [`Interpolation::Trilinear`]
 //! lookups; [`MerlTable::with_interpolation`] changes that.
+//!
+//! Tabulating a sampler from a table evaluates it millions of times over
+//! rings of half vectors ([`Brdf::luminance_half_ring`]). For that a table
+//! keeps, from the first such call on, a plane of the luminances of its
+//! entries (5.8 MB), and computes the half/difference angles straight from
+//! wo and each half vector; see the method for how closely that agrees
+//! with [`MerlTable::eval`].
 
 use std::io::Write;
 use std::path::Path;
+use std::sync::OnceLock;
 
-use acdf_core::{Brdf, HalfDiff, Rgb, Vec3};
+use acdf_core::fast::fast_atan2;
+use acdf_core::geometry::reflect;
+use acdf_core::{luminance, Brdf, HalfDiff, Rgb, Vec3};
 use rayon::prelude::*;
 
 use crate::MaterialError;
@@ -86,6 +96,29 @@ pub fn plane_index(i: usize, j: usize, k: usize) -> usize {
     k + PHI_D_RES * (j + THETA_D_RES * i)
 }
 
+/// The continuous θ_h index u_h = 90 √(θ_h / (π/2)) of a finite θ_h
+/// (clamped to [0, π/2]), at most 89.
+#[inline]
+fn theta_h_index(theta_h: f32) -> f32 {
+    let half_pi = std::f32::consts::FRAC_PI_2;
+    ((theta_h.clamp(0.0, half_pi) / half_pi).sqrt() * THETA_H_RES as f32)
+        .min((THETA_H_RES - 1) as f32)
+}
+
+/// Largest amount by which cos² + sin² of a half vector handed to
+/// [`Brdf::luminance_half_ring`] may miss 1 for the fast path; a half vector
+/// off by ε tilts the mirrored wi by about ε rad, so this bounds what the
+/// fast path adds to the angle error. Libm or `acdf_core::fast` sines and
+/// cosines are within a few 1e-7.
+const RING_UNIT_TOLERANCE: f32 = 1e-6;
+
+/// Entries of one θ_h index: 90 · 180.
+const SLICE_LEN: usize = THETA_D_RES * PHI_D_RES;
+
+/// Columns per pass of [`Brdf::luminance_half_ring`] for a [`MerlTable`]
+/// (the angle buffers live on the stack).
+const RING_CHUNK: usize = 64;
+
 /// How [`MerlTable`] turns continuous angles into table values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Interpolation {
@@ -113,6 +146,10 @@ pub struct MerlTable {
     /// One bit per value in `values`: set when the entry was not measured.
     unmeasured: Vec<u64>,
     interpolation: Interpolation,
+    /// The luminance Y of every entry (one plane, `PLANE_LEN` values), made
+    /// on the first [`Brdf::luminance_half_ring`] call: a luminance lookup
+    /// then reads one plane instead of three.
+    luminance: OnceLock<Vec<f32>>,
 }
 
 impl std::fmt::Debug for MerlTable {
@@ -256,6 +293,7 @@ impl MerlTable {
             values,
             unmeasured,
             interpolation: Interpolation::default(),
+            luminance: OnceLock::new(),
         };
         table.fill_unmeasured();
         Ok(table)
@@ -305,6 +343,7 @@ impl MerlTable {
             values,
             unmeasured,
             interpolation: Interpolation::default(),
+            luminance: OnceLock::new(),
         };
         table.fill_unmeasured();
         table
@@ -494,7 +533,7 @@ impl MerlTable {
             return Rgb::ZERO;
         }
         let half_pi = std::f32::consts::FRAC_PI_2;
-        let u_h = (theta_h.clamp(0.0, half_pi) / half_pi).sqrt() * THETA_H_RES as f32;
+        let u_h = theta_h_index(theta_h);
         let u_d = theta_d.clamp(0.0, half_pi) / half_pi * THETA_D_RES as f32;
         // Fold φ_d into [0, π) before scaling, where the subtraction is exact
         // to an ulp of π rather than of 360.
@@ -502,7 +541,6 @@ impl MerlTable {
         let pi = std::f32::consts::PI;
         let phi_d = if phi_d >= pi { phi_d - pi } else { phi_d };
         let u_p = phi_d / pi * PHI_D_RES as f32;
-        let u_h = u_h.min((THETA_H_RES - 1) as f32);
         let u_d = u_d.min((THETA_D_RES - 1) as f32);
         let wrap_p = |k: usize| k % PHI_D_RES;
         let f = match interpolation {
@@ -534,6 +572,138 @@ impl MerlTable {
     }
 }
 
+impl MerlTable {
+    /// The luminance plane: Y of entry n, `PLANE_LEN` values, at most
+    /// `f32::MAX`, built on first use.
+    fn luminance_plane(&self) -> &[f32] {
+        self.luminance.get_or_init(|| {
+            let (r, rest) = self.values.split_at(PLANE_LEN);
+            let (g, b) = rest.split_at(PLANE_LEN);
+            r.iter()
+                .zip(g)
+                .zip(b)
+                .map(|((&r, &g), &b)| luminance(Rgb::new(r, g, b)).min(f32::MAX))
+                .collect()
+        })
+    }
+
+    /// The continuous indices (u_d, u_p) of a chunk of a ring, for
+    /// [`Brdf::luminance_half_ring`]; u_d is set to −1 for the columns the
+    /// fast path leaves out (wi at or below the horizon, wo·h ≤ 0, a column
+    /// off the unit circle).
+    ///
+    /// With h = (s c_φ, s s_φ, c) and wi = 2 (wo·h) h − wo, the difference
+    /// vector is d = (wi·t1, wi·t2, wi·h) = (−wo·t1, −wo·t2, wo·h) in the half
+    /// frame t1 = (c c_φ, c s_φ, −s), t2 = (−s_φ, c_φ, 0) (reflection about h
+    /// negates the part of wo across h). So θ_d = atan2(|wo × h|, wo·h) and,
+    /// folded by reciprocity into [0, π), φ_d = atan2(wo·t2, wo·t1) mod π:
+    /// no normalisation and no half vector rebuilt from wi + wo. The loop has
+    /// no branches and no memory reads, so it vectorises.
+    #[inline(always)]
+    fn ring_angles(
+        wo: Vec3,
+        (sin_h, cos_h): (f32, f32),
+        columns: &[(f32, f32)],
+        u_d: &mut [f32],
+        u_p: &mut [f32],
+    ) {
+        let pi = std::f32::consts::PI;
+        let per_theta_d = THETA_D_RES as f32 / std::f32::consts::FRAC_PI_2;
+        let per_phi_d = PHI_D_RES as f32 / pi;
+        // On the pole `HalfDiff` measures φ_d from the x axis.
+        let pole = sin_h == 0.0;
+        for ((&(cos_p, sin_p), u_d), u_p) in columns.iter().zip(u_d).zip(u_p) {
+            let h = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
+            let wo_h = wo.dot(h);
+            let wi_z = 2.0 * wo_h * h.z - wo.z;
+            let unit = ((cos_p * cos_p + sin_p * sin_p) - 1.0).abs() <= RING_UNIT_TOLERANCE;
+            let theta_d = fast_atan2(wo.cross(h).length(), wo_h);
+            let (cos_f, sin_f) = if pole { (1.0, 0.0) } else { (cos_p, sin_p) };
+            let x = cos_h * (wo.x * cos_f + wo.y * sin_f) - sin_h * wo.z;
+            let y = wo.y * cos_f - wo.x * sin_f;
+            let mut phi_d = fast_atan2(y, x);
+            if phi_d < 0.0 {
+                phi_d += pi;
+            }
+            if phi_d >= pi {
+                phi_d -= pi;
+            }
+            let fast = wi_z > 0.0 && wo_h > 0.0 && unit;
+            *u_d = if fast {
+                (theta_d * per_theta_d).min((THETA_D_RES - 1) as f32)
+            } else {
+                -1.0
+            };
+            *u_p = phi_d * per_phi_d;
+        }
+    }
+}
+
+/// round(u) for u ≥ 0 (half away from zero, as `f32::round`) without the
+/// libm call that `round` is without SSE4.1: the fraction u − trunc(u) is
+/// exact.
+#[inline(always)]
+fn round_non_negative(u: f32) -> usize {
+    let t = u as usize;
+    t + ((u - t as f32) >= 0.5) as usize
+}
+
+/// The entries of one ring's trilinear look-ups in the luminance `plane`:
+/// rows `base0` and `base1` (θ_h indices h0 and h0 + 1, weight `th` on the
+/// second), continuous (u_d, u_p) per column as in
+/// [`MerlTable::eval_angles_with`]. Columns with a negative u_d are left
+/// alone (the caller fills them).
+#[inline(always)]
+fn trilinear_ring(
+    plane: &[f32],
+    (base0, base1, th): (usize, usize, f32),
+    u_d: &[f32],
+    u_p: &[f32],
+    out: &mut [f32],
+) {
+    let m = u_d.len().min(u_p.len()).min(out.len()).min(RING_CHUNK);
+    // Offsets and weights first, in a loop that vectorises (structure of
+    // arrays, and i32 rather than usize: SSE2 converts packed floats to
+    // i32 only); the reads after.
+    let mut first = [0i32; RING_CHUNK];
+    let mut next_p = [0i32; RING_CHUNK];
+    let mut next_d = [0i32; RING_CHUNK];
+    let mut t_d = [0.0f32; RING_CHUNK];
+    let mut t_p = [0.0f32; RING_CHUNK];
+    let (n_d, n_p) = (THETA_D_RES as i32, PHI_D_RES as i32);
+    for c in 0..m {
+        let (u_d, u_p) = (u_d[c].max(0.0), u_p[c]);
+        let (d0, p0) = (u_d as i32, u_p as i32);
+        t_d[c] = (u_d - d0 as f32).clamp(0.0, 1.0);
+        t_p[c] = (u_p - p0 as f32).clamp(0.0, 1.0);
+        // 0 ≤ u_p ≤ 180, so one subtraction wraps p0 and p0 + 1.
+        let p0 = if p0 >= n_p { p0 - n_p } else { p0 };
+        let p1 = if p0 + 1 >= n_p { 0 } else { p0 + 1 };
+        first[c] = d0 * n_p + p0;
+        next_p[c] = p1 - p0;
+        next_d[c] = if d0 + 1 < n_d { n_p } else { 0 };
+    }
+    let (row0, row1) = (
+        &plane[base0..base0 + SLICE_LEN],
+        &plane[base1..base1 + SLICE_LEN],
+    );
+    for c in 0..m {
+        // Columns left out (often half the ring for grazing wo) cost no
+        // reads.
+        if u_d[c] < 0.0 {
+            continue;
+        }
+        let (td, tp) = (t_d[c], t_p[c]);
+        let n00 = first[c];
+        let n01 = n00 + next_p[c];
+        let (n10, n11) = (n00 + next_d[c], n01 + next_d[c]);
+        let at = |row: &[f32], n: i32| row[(n as usize).min(SLICE_LEN - 1)];
+        let lerp_p = |row: &[f32], a: i32, b: i32| at(row, a) * (1.0 - tp) + at(row, b) * tp;
+        let lerp_d = |row: &[f32]| lerp_p(row, n00, n01) * (1.0 - td) + lerp_p(row, n10, n11) * td;
+        out[c] = lerp_d(row0) * (1.0 - th) + lerp_d(row1) * th;
+    }
+}
+
 impl Brdf for MerlTable {
     fn name(&self) -> &str {
         &self.name
@@ -557,6 +727,100 @@ impl Brdf for MerlTable {
 
     fn is_isotropic(&self) -> bool {
         true
+    }
+
+    /// The ring of [`Brdf::luminance_half_ring`] read from a plane of
+    /// luminances by the table's [`Interpolation`], with the angles of
+    /// [`MerlTable::eval`] computed from wo and each half vector directly
+    /// ([`fast_atan2`] for θ_d and φ_d, the θ_h index once per ring).
+    ///
+    /// Its angles are within 5e-7 rad of the exact half/difference angles
+    /// of (wo, h_c) (θ_d, φ_d; φ_d within 5e-7 rad + 1e-7 rad / sin θ_d,
+    /// being undefined at θ_d = 0), and it agrees with the luminance of
+    /// [`MerlTable::eval`] at (wo, reflect(wo, h_c)) to that error plus
+    /// `eval`'s own: trilinear values within 1e-5 relative (a luminance of
+    /// interpolated colours against an interpolated luminance) plus the
+    /// angle errors times the steps between neighbouring entries. `Nearest`
+    /// and `Floor` read the same entry except where a continuous index lies
+    /// within that error of a rounding (`Nearest`) or integer (`Floor`)
+    /// boundary, where the two paths may name neighbouring entries (no flip
+    /// in the tests where both errors are below 2e-4 index units). Near
+    /// θ_h = 0 and θ_d = π/2 `eval` is the less accurate of the two: it
+    /// rebuilds h from wi + wo, which fixes h only to about
+    /// 6e-8 / cos θ_d rad and φ_h (hence φ_d) to that over sin θ_h. Inputs
+    /// the fast path does not cover (wo not finite, zero or at or below the
+    /// horizon, sin θ_h < 0, cos θ_h ≤ 0, a half vector or column whose
+    /// squared length misses 1 by more than 1e-6, wo·h ≤ 0) go through
+    /// `eval`; columns whose wi is at or below the horizon give 0.
+    fn luminance_half_ring(
+        &self,
+        wo: Vec3,
+        (sin_h, cos_h): (f32, f32),
+        columns: &[(f32, f32)],
+        out: &mut [f32],
+    ) {
+        let ring_unit = ((sin_h * sin_h + cos_h * cos_h) - 1.0).abs() <= RING_UNIT_TOLERANCE;
+        // The angles do not depend on the length of wo, but its products
+        // could overflow; `eval` normalises it too.
+        let wo = wo.try_normalize().unwrap_or(Vec3::ZERO);
+        if !(wo.z > 0.0 && sin_h >= 0.0 && cos_h > 0.0 && ring_unit) {
+            for (&(cos_p, sin_p), y) in columns.iter().zip(out.iter_mut()) {
+                let h = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
+                *y = luminance(self.eval(wo, reflect(wo, h)));
+            }
+            return;
+        }
+        let plane = self.luminance_plane();
+        let u_h = theta_h_index(sin_h.atan2(cos_h));
+        let row = |i: usize| i.min(THETA_H_RES - 1) * SLICE_LEN;
+        let n = columns.len().min(out.len());
+        let mut u_d = [0.0f32; RING_CHUNK];
+        let mut u_p = [0.0f32; RING_CHUNK];
+        for (columns, out) in columns[..n]
+            .chunks(RING_CHUNK)
+            .zip(out[..n].chunks_mut(RING_CHUNK))
+        {
+            let m = columns.len();
+            let (u_d, u_p) = (&mut u_d[..m], &mut u_p[..m]);
+            Self::ring_angles(wo, (sin_h, cos_h), columns, u_d, u_p);
+            match self.interpolation {
+                Interpolation::Nearest => {
+                    let base = row(u_h.round() as usize);
+                    for ((&u_d, &u_p), y) in u_d.iter().zip(&*u_p).zip(&mut *out) {
+                        let (j, k) = (round_non_negative(u_d), round_non_negative(u_p));
+                        *y = plane[base + plane_index(0, j.min(THETA_D_RES - 1), k % PHI_D_RES)];
+                    }
+                }
+                Interpolation::Floor => {
+                    let base = row(u_h as usize);
+                    for ((&u_d, &u_p), y) in u_d.iter().zip(&*u_p).zip(&mut *out) {
+                        let (j, k) = (u_d as usize, u_p as usize);
+                        *y = plane[base + plane_index(0, j.min(THETA_D_RES - 1), k % PHI_D_RES)];
+                    }
+                }
+                Interpolation::Trilinear => {
+                    let h0 = u_h as usize;
+                    let th = (u_h - h0 as f32).clamp(0.0, 1.0);
+                    trilinear_ring(plane, (row(h0), row(h0 + 1), th), u_d, u_p, out);
+                }
+            }
+            for ((&(cos_p, sin_p), &u_d), y) in columns.iter().zip(&*u_d).zip(out) {
+                *y = if u_d >= 0.0 {
+                    y.min(f32::MAX)
+                } else {
+                    // Below the horizon (or NaN) is 0 either way; the rare
+                    // rest (wo·h ≤ 0 with wi above, a column off the unit
+                    // circle) goes to the general evaluation.
+                    let h = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
+                    let wi = reflect(wo, h);
+                    if wi.z > 0.0 {
+                        luminance(self.eval(wo, wi))
+                    } else {
+                        0.0
+                    }
+                };
+            }
+        }
     }
 }
 
@@ -942,5 +1206,324 @@ mod tabulation_tests {
         }
         println!("tabulated blue-metallic-paint: worst relative error {worst}");
         assert!(worst < 0.01, "worst relative error {worst}");
+    }
+}
+
+#[cfg(test)]
+mod ring_tests {
+    use super::*;
+    use crate::analytic;
+    use acdf_core::geometry::spherical_direction;
+    use rand::{Rng, SeedableRng};
+    use std::sync::OnceLock;
+
+    /// A table seen only through `eval`: the default `luminance_half_ring`.
+    struct EvalOnly<'a>(&'a MerlTable);
+
+    impl Brdf for EvalOnly<'_> {
+        fn name(&self) -> &str {
+            self.0.name()
+        }
+        fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+            self.0.eval(wo, wi)
+        }
+        fn is_isotropic(&self) -> bool {
+            true
+        }
+    }
+
+    /// Three tables whose entry (i, j, k) is 1 + i, 1 + j and 1 + k in every
+    /// channel: a trilinear lookup returns 1 + u_h, 1 + u_d or 1 + u_p (away
+    /// from the φ_d seam), so the ring's continuous indices can be read off,
+    /// and 0 means "below the horizon".
+    fn index_tables() -> &'static [MerlTable; 3] {
+        static TABLES: OnceLock<[MerlTable; 3]> = OnceLock::new();
+        TABLES.get_or_init(|| {
+            [0, 1, 2].map(|axis| {
+                MerlTable::from_fn("index", move |i, j, k| {
+                    Some([1.0 + [i, j, k][axis] as f64; 3])
+                })
+            })
+        })
+    }
+
+    /// The continuous indices (u_h, u_d, u_p) of (wo, h) by the definition,
+    /// in f64: wi = reflect(wo, h), d = wi in the frame (t1, t2, h) of
+    /// `HalfDiff`, φ_d folded into [0, π); `None` when wi is not above the
+    /// horizon.
+    fn reference_indices(wo: Vec3, h: Vec3) -> Option<(f64, f64, f64, f64)> {
+        use std::f64::consts::{FRAC_PI_2, PI};
+        let wo = wo.as_dvec3().normalize();
+        let h = h.as_dvec3().normalize();
+        let wi = 2.0 * wo.dot(h) * h - wo;
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let sin_h = h.x.hypot(h.y);
+        let (cos_p, sin_p) = if sin_h > 0.0 {
+            (h.x / sin_h, h.y / sin_h)
+        } else {
+            (1.0, 0.0)
+        };
+        let t1 = glam::DVec3::new(h.z * cos_p, h.z * sin_p, -sin_h);
+        let t2 = glam::DVec3::new(-sin_p, cos_p, 0.0);
+        let d = glam::DVec3::new(wi.dot(t1), wi.dot(t2), wi.dot(h));
+        let theta_h = sin_h.atan2(h.z);
+        let theta_d = d.x.hypot(d.y).atan2(d.z);
+        let phi_d = d.y.atan2(d.x).rem_euclid(PI);
+        let u_h = ((theta_h / FRAC_PI_2).sqrt() * 90.0).min(89.0);
+        let u_d = (theta_d / FRAC_PI_2 * 90.0).min(89.0);
+        Some((u_h, u_d, phi_d / PI * 180.0, d.x.hypot(d.y)))
+    }
+
+    /// Random (wo, θ_h) with grazing and near-normal outgoing directions and
+    /// half vectors near and on the pole mixed in, and a ring of random
+    /// columns.
+    fn random_case(rng: &mut rand_pcg::Pcg64) -> (Vec3, (f32, f32), Vec<(f32, f32)>) {
+        let half_pi = std::f32::consts::FRAC_PI_2;
+        let theta_o = match rng.random_range(0..4) {
+            0 => rng.random_range(half_pi - 1e-3..half_pi - 1e-6),
+            1 => rng.random_range(0.0..1e-4),
+            _ => rng.random_range(0.0..half_pi),
+        };
+        let wo = spherical_direction(theta_o, rng.random_range(0.0..std::f32::consts::TAU));
+        let theta_h: f32 = match rng.random_range(0..6) {
+            0 => rng.random_range(0.0..1e-4),
+            1 => 0.0,
+            _ => rng.random_range(0.0..half_pi - 1e-3),
+        };
+        let columns = (0..8)
+            .map(|_| {
+                let (s, c) = rng.random_range(0.0..std::f32::consts::TAU).sin_cos();
+                (c, s)
+            })
+            .collect();
+        (wo, theta_h.sin_cos(), columns)
+    }
+
+    /// The ring's half/difference angles are within 5e-7 rad (θ_h, θ_d) and
+    /// 5e-7 rad + 1e-7 / sin θ_d (φ_d, which is undefined at θ_d = 0) of the
+    /// f64 definition, for grazing and near-normal wo and half vectors on
+    /// and near the pole; 0 exactly where wi is below the horizon.
+    #[test]
+    fn ring_angles_match_the_definition() {
+        let tables = index_tables();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let (mut worst_d, mut worst_p, mut checked) = (0.0f64, 0.0f64, 0);
+        let rad_per_u_d = std::f64::consts::FRAC_PI_2 / 90.0;
+        let rad_per_u_p = std::f64::consts::PI / 180.0;
+        for _ in 0..3000 {
+            let (wo, half, columns) = random_case(&mut rng);
+            let mut got = [[0.0f32; 8]; 3];
+            for (t, g) in tables.iter().zip(&mut got) {
+                t.luminance_half_ring(wo, half, &columns, g);
+            }
+            for (c, &(cos_p, sin_p)) in columns.iter().enumerate() {
+                let h = Vec3::new(half.0 * cos_p, half.0 * sin_p, half.1);
+                let wi_z = reflect(wo, h).z;
+                let Some((u_h, u_d, u_p, sin_d)) = reference_indices(wo, h) else {
+                    assert!(got.iter().all(|g| g[c] == 0.0), "{wo} {h}");
+                    continue;
+                };
+                if wi_z < 1e-6 {
+                    continue; // on the horizon either answer is right
+                }
+                let [gh, gd, gp] = [got[0][c], got[1][c], got[2][c]].map(|v| v as f64 - 1.0);
+                assert!((gh - u_h).abs() <= 2e-5 + 1e-6 * u_h, "u_h {gh} vs {u_h}");
+                let err_d = (gd - u_d).abs() * rad_per_u_d;
+                assert!(err_d <= 5e-7, "θ_d off by {err_d} rad at {wo} {h}");
+                worst_d = worst_d.max(err_d);
+                // Trilinear blends entries 179 and 0 across the seam.
+                if u_p < 178.99 && gp < 178.99 {
+                    let e = (gp - u_p).abs();
+                    let err_p = e.min(180.0 - e) * rad_per_u_p;
+                    assert!(
+                        err_p <= 5e-7 + 1e-7 / sin_d,
+                        "φ_d off by {err_p} rad (sin θ_d {sin_d}) at {wo} {h}"
+                    );
+                    worst_p = worst_p.max(err_p * sin_d.min(1.0));
+                }
+                checked += 1;
+            }
+        }
+        println!("worst θ_d error {worst_d:e} rad, worst φ_d error × sin θ_d {worst_p:e}");
+        assert!(checked > 10_000, "{checked}");
+    }
+
+    /// Bounds on how far `eval`'s and the ring's continuous indices
+    /// (u_h, u_d, u_p) can be apart at (θ_h, θ_d): `eval` rebuilds h from
+    /// wi + wo, which fixes h to about ε_h = 2e-7 / cos θ_d rad (f32 unit
+    /// vectors, |wi + wo| = 2 cos θ_d), and φ_h, hence φ_d, to ε_h / sin θ_h;
+    /// both paths add up to 5e-7 rad of trigonometry (over sin θ_d for φ_d).
+    /// Twice the sum, in index units.
+    fn index_error_bounds(theta_h: f32, theta_d: f32) -> [f32; 3] {
+        let half_pi = std::f32::consts::FRAC_PI_2;
+        let eps_h = 2e-7 / theta_d.cos().max(1e-9);
+        let trig = 5e-7;
+        let d_theta_h = eps_h + trig;
+        let d_theta_d = eps_h + trig;
+        let d_phi_d = eps_h / theta_h.sin().max(1e-9) + trig / theta_d.sin().max(1e-9);
+        let du_h = 45.0 / (theta_h.max(1e-12) * half_pi).sqrt() * d_theta_h;
+        let per_rad = 90.0 / half_pi;
+        [du_h, per_rad * d_theta_d, per_rad * d_phi_d].map(|d| 2.0 * d + 1e-5)
+    }
+
+    /// The ring agrees with `eval` on the tabulated nickel, where each
+    /// column's tolerance comes from [`index_error_bounds`] at `eval`'s
+    /// angles: trilinear values differ by at most 1e-5 relative (a luminance
+    /// of interpolated colours against an interpolated luminance) plus, per
+    /// axis, the index bound times the largest step between neighbouring
+    /// entries of the cells within the bounds; `Nearest` and `Floor` read the very same entry
+    /// unless one of `eval`'s continuous indices lies within its bound of a
+    /// rounding (`Nearest`) or integer (`Floor`) boundary, where the two
+    /// paths may name neighbouring entries. Near the pole and near
+    /// θ_d = π/2 the bounds grow because `eval` is the less accurate of the
+    /// two there (the ring is checked against f64 in
+    /// [`ring_angles_match_the_definition`]).
+    #[test]
+    fn ring_agrees_with_eval() {
+        let nickel = MerlTable::tabulate(&analytic::nickel());
+        let plane = nickel.luminance_plane().to_vec();
+        let entry =
+            |i: usize, j: usize, k: usize| plane[plane_index(i.min(89), j.min(89), k % PHI_D_RES)];
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(12);
+        let cases: Vec<_> = (0..3000).map(|_| random_case(&mut rng)).collect();
+        for interpolation in [
+            Interpolation::Trilinear,
+            Interpolation::Nearest,
+            Interpolation::Floor,
+        ] {
+            let table = nickel.clone().with_interpolation(interpolation);
+            let (mut exact, mut flips, mut compared) = (0, 0, 0);
+            for (wo, half, columns) in &cases {
+                let mut got = [0.0f32; 8];
+                table.luminance_half_ring(*wo, *half, columns, &mut got);
+                for (&(cos_p, sin_p), &got) in columns.iter().zip(&got) {
+                    let h = Vec3::new(half.0 * cos_p, half.0 * sin_p, half.1);
+                    let wi = reflect(*wo, h);
+                    let want = table.luminance(*wo, wi);
+                    assert!(got.is_finite() && got >= 0.0);
+                    if wi.z < 1e-6 {
+                        continue; // on the horizon either answer is right
+                    }
+                    compared += 1;
+                    let hd = HalfDiff::from_directions(wi.normalize(), *wo).unwrap();
+                    let u = [
+                        theta_h_index(hd.theta_h),
+                        (hd.theta_d / std::f32::consts::FRAC_PI_2 * 90.0).min(89.0),
+                        (hd.phi_d % std::f32::consts::PI) / std::f32::consts::PI * 180.0,
+                    ];
+                    let bounds = index_error_bounds(hd.theta_h, hd.theta_d);
+                    let diff = (got - want).abs();
+                    if diff <= 1e-5 * want {
+                        exact += 1;
+                        continue;
+                    }
+                    if interpolation == Interpolation::Trilinear {
+                        // The largest step between neighbouring entries
+                        // along each axis, over every cell either path can
+                        // be in.
+                        let span = |a: usize| {
+                            let lo = (u[a] - bounds[a]).max(0.0) as usize;
+                            lo..=((u[a] + bounds[a]) as usize + 1).min(lo + 4)
+                        };
+                        let mut steps = [0.0f32; 3];
+                        for i in span(0) {
+                            for j in span(1) {
+                                for k in span(2) {
+                                    let here = entry(i, j, k);
+                                    let next = [
+                                        entry(i + 1, j, k),
+                                        entry(i, j + 1, k),
+                                        entry(i, j, k + 1),
+                                    ];
+                                    for (s, n) in steps.iter_mut().zip(next) {
+                                        *s = s.max((n - here).abs());
+                                    }
+                                }
+                            }
+                        }
+                        let tolerance = 1e-5 * want
+                            + steps.iter().zip(&bounds).map(|(s, b)| s * b).sum::<f32>();
+                        assert!(
+                            diff <= tolerance,
+                            "{got} vs {want} (tolerance {tolerance}) at {wo} {h}"
+                        );
+                        continue;
+                    }
+                    let boundary = if interpolation == Interpolation::Nearest {
+                        0.5
+                    } else {
+                        0.0
+                    };
+                    let near = u.iter().zip(&bounds).any(|(&u, &b)| {
+                        let f = (u - boundary).rem_euclid(1.0);
+                        f.min(1.0 - f) <= b
+                    });
+                    assert!(
+                        near,
+                        "{interpolation:?}: {got} vs {want}, indices {u:?}, bounds {bounds:?}"
+                    );
+                    flips += 1;
+                }
+            }
+            println!(
+                "{interpolation:?}: {compared} compared, {exact} within 1e-5, \
+                 {flips} boundary flips"
+            );
+            // Most columns are far from the pole, θ_d = π/2 and cell
+            // boundaries (a third of the cases here are near the pole, a
+            // quarter grazing).
+            assert!(compared > 10_000 && exact * 10 > 9 * compared);
+        }
+    }
+
+    /// Inputs outside the fast path give what the default ring gives (one
+    /// `eval` per column), and nothing NaN, infinite or negative.
+    #[test]
+    fn ring_bad_inputs() {
+        let table = MerlTable::tabulate(&analytic::nickel());
+        let reference = EvalOnly(&table);
+        let wo = spherical_direction(0.7, 0.3);
+        let unit = (0.4f32.sin(), 0.4f32.cos());
+        let columns = [
+            (1.0, 0.0),
+            (0.0, 1.0),
+            (2.0, 0.0),
+            (f32::NAN, 0.0),
+            (0.6, 0.8),
+            (-1.0, 0.0),
+        ];
+        let cases = [
+            (wo, unit),
+            (Vec3::new(f32::NAN, 0.0, 1.0), unit),
+            (Vec3::ZERO, unit),
+            (Vec3::new(0.3, 0.0, -0.9), unit),
+            (Vec3::new(0.0, 0.0, 1.0), unit),
+            (wo * 3.0, unit),
+            (wo, (-0.3, 0.95)),
+            (wo, (0.6, 0.9)),
+            (wo, (1.0, 0.0)),
+            (wo, (f32::NAN, 1.0)),
+            (wo, (0.0, 1.0)),
+        ];
+        for (wo, half) in cases {
+            let mut got = [7.0f32; 6];
+            let mut want = [7.0f32; 6];
+            table.luminance_half_ring(wo, half, &columns, &mut got);
+            reference.luminance_half_ring(wo, half, &columns, &mut want);
+            for (g, w) in got.iter().zip(&want) {
+                assert!(g.is_finite() && *g >= 0.0, "{wo} {half:?}: {got:?}");
+                assert!(
+                    (g - w).abs() <= 1e-4 * w,
+                    "{wo} {half:?}: {got:?} vs {want:?}"
+                );
+            }
+        }
+        // A short output gets only its own length.
+        let mut short = [7.0f32; 2];
+        table.luminance_half_ring(wo, unit, &columns, &mut short);
+        assert!(short.iter().all(|v| *v != 7.0));
+        table.luminance_half_ring(wo, unit, &[], &mut short);
     }
 }

@@ -14,10 +14,13 @@
 //!   default `adaptive` sampler); `sample_batch` over all the numbers on one
 //!   thread, and split into chunks over every rayon thread.
 //! - **BRDF samplers** (`uniform`, `adaptive`) on the built-in material at
-//!   the isotropic resolution, all slices built beforehand: `sample` called
-//!   once per draw with the outgoing direction changing every draw (the
-//!   renderer's case), `sample_batch` for one outgoing direction, and `pdf`
-//!   once per pair.
+//!   the isotropic resolution, all slices built beforehand, on one thread:
+//!   `sample` called once per draw with the outgoing direction changing
+//!   every draw (a path tracer's case, cycling through 64 directions);
+//!   `sample_each` over the same (wo, u) pairs (a wavefront renderer's
+//!   batch); `sample_batch` for one outgoing direction; and the densities
+//!   of the drawn pairs by `pdf` once per pair, by `pdf_each`, and by
+//!   `pdf_batch` for the one direction.
 //! - **Builds**: the material tabulated into a MERL-layout table
 //!   ([`MerlTable::tabulate`], not timed), then every slice of the uniform
 //!   and the adaptive sampler built from that table with `build_all` (all
@@ -119,10 +122,17 @@ pub struct SamplerBench {
     pub resolution: String,
     /// `sample` called per draw, outgoing direction changing every draw.
     pub sample_per_second: f64,
+    /// `sample_each` over the same (wo, u) pairs, samples per second.
+    pub sample_each_per_second: f64,
     /// `sample_batch` for one outgoing direction, samples per second.
     pub sample_batch_per_second: f64,
     /// `pdf` called per (wo, wi) pair, densities per second.
     pub pdf_per_second: f64,
+    /// `pdf_each` over the same pairs, densities per second.
+    pub pdf_each_per_second: f64,
+    /// `pdf_batch` for the one outgoing direction of `sample_batch`, over
+    /// its draws, densities per second.
+    pub pdf_batch_per_second: f64,
     /// `BxdfSampler::storage_bytes` with every slice built.
     pub storage_bytes: usize,
 }
@@ -211,33 +221,47 @@ fn outgoing_directions(count: usize) -> Vec<Vec3> {
         .collect()
 }
 
-/// Time `sample`, `sample_batch` and `pdf` of a built sampler on one thread.
+/// Time `sample`, `sample_each`, `sample_batch`, `pdf`, `pdf_each` and
+/// `pdf_batch` of a built sampler on one thread.
 fn bench_sampler<B: SliceBuilder>(
     sampler: &TabulatedBrdfSampler<B>,
     u: &[Vec2],
     repeats: usize,
 ) -> SamplerBench {
-    let wos = outgoing_directions(64);
+    let directions = outgoing_directions(64);
+    let wos: Vec<Vec3> = (0..u.len())
+        .map(|k| directions[k % directions.len()])
+        .collect();
     let n = u.len() as f64;
     let mut drawn: Vec<(Vec3, Vec3)> = Vec::with_capacity(u.len());
     let per_call = best_seconds(repeats, || {
         drawn.clear();
-        for (k, &u) in u.iter().enumerate() {
-            let wo = wos[k % wos.len()];
+        for (&wo, &u) in wos.iter().zip(u) {
             if let Some(s) = sampler.sample(wo, u) {
                 drawn.push((wo, s.wi));
             }
         }
         std::hint::black_box(&drawn);
     });
-    let wo = spherical_direction(0.6, 1.3);
     let mut out = vec![None; u.len()];
+    let each = best_seconds(repeats, || {
+        for ((wc, uc), oc) in wos
+            .chunks(CHUNK)
+            .zip(u.chunks(CHUNK))
+            .zip(out.chunks_mut(CHUNK))
+        {
+            sampler.sample_each(wc, uc, oc);
+        }
+        std::hint::black_box(&out);
+    });
+    let wo = spherical_direction(0.6, 1.3);
     let batch = best_seconds(repeats, || {
         for (uc, oc) in u.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
             sampler.sample_batch(wo, uc, oc);
         }
         std::hint::black_box(&out);
     });
+    let batch_wi: Vec<Vec3> = out.iter().flatten().map(|s| s.wi).collect();
     let pdf = best_seconds(repeats, || {
         let mut total = 0.0f32;
         for &(wo, wi) in &drawn {
@@ -245,12 +269,33 @@ fn bench_sampler<B: SliceBuilder>(
         }
         std::hint::black_box(total);
     });
+    let (drawn_wo, drawn_wi): (Vec<Vec3>, Vec<Vec3>) = drawn.iter().copied().unzip();
+    let mut densities = vec![0.0f32; drawn.len().max(batch_wi.len())];
+    let pdf_each = best_seconds(repeats, || {
+        for ((wc, ic), oc) in drawn_wo
+            .chunks(CHUNK)
+            .zip(drawn_wi.chunks(CHUNK))
+            .zip(densities.chunks_mut(CHUNK))
+        {
+            sampler.pdf_each(wc, ic, oc);
+        }
+        std::hint::black_box(&densities);
+    });
+    let pdf_batch = best_seconds(repeats, || {
+        for (ic, oc) in batch_wi.chunks(CHUNK).zip(densities.chunks_mut(CHUNK)) {
+            sampler.pdf_batch(wo, ic, oc);
+        }
+        std::hint::black_box(&densities);
+    });
     SamplerBench {
         name: sampler.name().to_string(),
         resolution: sampler.resolution().to_string(),
         sample_per_second: n / per_call,
+        sample_each_per_second: n / each,
         sample_batch_per_second: n / batch,
         pdf_per_second: drawn.len().max(1) as f64 / pdf,
+        pdf_each_per_second: drawn.len().max(1) as f64 / pdf_each,
+        pdf_batch_per_second: batch_wi.len().max(1) as f64 / pdf_batch,
         storage_bytes: sampler.storage_bytes(),
     }
 }
@@ -385,17 +430,20 @@ pub fn format_bench(report: &BenchReport) -> String {
         ));
     }
     s.push_str(&format!(
-        "{:<24} {:>12} {:>12} {:>12} {:>12}\n",
-        "sampler", "resolution", "sample M/s", "batch M/s", "pdf M/s"
+        "{:<14} {:>12} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}   (M/s, one thread)\n",
+        "sampler", "resolution", "sample", "each", "batch", "pdf", "pdf each", "pdf batch"
     ));
     for b in &report.samplers {
         s.push_str(&format!(
-            "{:<24} {:>12} {:>12.2} {:>12.2} {:>12.2}   {} bytes\n",
+            "{:<14} {:>12} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2}   {} bytes\n",
             b.name,
             b.resolution,
             b.sample_per_second / 1e6,
+            b.sample_each_per_second / 1e6,
             b.sample_batch_per_second / 1e6,
             b.pdf_per_second / 1e6,
+            b.pdf_each_per_second / 1e6,
+            b.pdf_batch_per_second / 1e6,
             b.storage_bytes
         ));
     }

@@ -86,6 +86,12 @@ macro_rules! any_sampler {
             fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
                 match self { $(AnySampler::$variant(s) => s.pdf_batch(wo, wi, out)),+ }
             }
+            fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+                match self { $(AnySampler::$variant(s) => s.sample_each(wo, u, out)),+ }
+            }
+            fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+                match self { $(AnySampler::$variant(s) => s.pdf_each(wo, wi, out)),+ }
+            }
         }
     };
 }

@@ -731,8 +731,11 @@ fn bench_prints_a_table_and_writes_documented_json() {
         assert_eq!(s["resolution"], "32x1x256x32");
         for field in [
             "sample_per_second",
+            "sample_each_per_second",
             "sample_batch_per_second",
             "pdf_per_second",
+            "pdf_each_per_second",
+            "pdf_batch_per_second",
             "storage_bytes",
         ] {
             assert!(positive(&s[field]), "{field}: {s}");

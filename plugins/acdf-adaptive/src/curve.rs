@@ -1,17 +1,21 @@
 //! The piecewise-linear CDF through a few vertices, shared by the 1D
 //! distribution and by every marginal and conditional of the 2D one.
 //!
-//! A curve is two equally long `f32` slices: vertex positions
-//! 0 = x_0 < x_1 < ... < x_m = 1 and CDF values 0 = c_0 <= c_1 <= ... <= c_m = 1.
-//! Segment i carries mass c_{i+1} - c_i spread evenly over [x_i, x_{i+1}), so
-//! the density there is (c_{i+1} - c_i) / (x_{i+1} - x_i). An empty curve (no
-//! vertices) stands for the uniform density; the 2D distribution uses it for
-//! conditionals that can never be reached.
+//! A curve of m vertices is stored as 2m `f32` values in a row: the vertex
+//! positions 0 = x_0 < x_1 < ... < x_{m-1} = 1, then the CDF values
+//! 0 = c_0 <= c_1 <= ... <= c_{m-1} = 1. Segment i carries mass
+//! c_{i+1} - c_i spread evenly over [x_i, x_{i+1}), so the density there is
+//! (c_{i+1} - c_i) / (x_{i+1} - x_i). An empty curve (no vertices) stands for
+//! the uniform density; the 2D distribution uses it for conditionals that
+//! can never be reached.
 //!
-//! Sampling, density and inversion all locate the segment the same way and
-//! compute the density with the one function [`Curve::density`], so the pdf
-//! returned with a sample is bit-for-bit the pdf evaluated at that sample.
+//! Sampling, density and inversion all locate the segment with the searches
+//! of [`crate::search`], which return exactly what a binary search would, and
+//! every density is (c_{i+1} - c_i) / (x_{i+1} - x_i) in f64 rounded once by
+//! the one function `density_of`, so the pdf returned with a sample is
+//! bit-for-bit the pdf evaluated at that sample.
 
+use crate::search::{count_at_or_below, count_short_or_search, Baseline, WindowCompare};
 use acdf_core::{clamp_unit, Sample1D, ONE_MINUS_EPSILON};
 
 /// The largest f32 strictly below `v` (for v > 0 finite).
@@ -24,73 +28,136 @@ pub(crate) fn f32_below(v: f32) -> f32 {
     }
 }
 
-/// A borrowed vertex list; see the module documentation.
+/// A borrowed curve: `len` vertex positions from `data[start]` on, then
+/// their `len` CDF values; see the module documentation.
+///
+/// The curve is addressed inside its whole buffer (not as two slices) so
+/// that a short curve can be searched with a fixed-size window that also
+/// covers entries of the buffer around it (which are not counted).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Curve<'a> {
-    pub x: &'a [f32],
-    pub cdf: &'a [f32],
+    data: &'a [f32],
+    start: usize,
+    len: usize,
 }
 
-impl Curve<'_> {
-    #[inline]
-    fn is_uniform(&self) -> bool {
-        self.x.len() < 2
+impl<'a> Curve<'a> {
+    /// The curve filling `data`: its first half positions, second half CDF
+    /// values.
+    #[inline(always)]
+    pub fn whole(data: &'a [f32]) -> Self {
+        Curve {
+            data,
+            start: 0,
+            len: data.len() / 2,
+        }
     }
 
-    /// The density of segment i: (c_{i+1} - c_i) / (x_{i+1} - x_i), evaluated
-    /// in f64 (differences of f32 values are exact there) and rounded once.
-    #[inline]
+    /// The curve of `len` vertices whose positions start at `data[start]`
+    /// (its CDF values at `data[start + len]`).
+    #[inline(always)]
+    pub fn within(data: &'a [f32], start: usize, len: usize) -> Self {
+        debug_assert!(start + 2 * len <= data.len());
+        Curve { data, start, len }
+    }
+
+    /// The vertex positions x_0, ..., x_{m-1}.
+    pub fn xs(&self) -> &'a [f32] {
+        &self.data[self.start..self.start + self.len]
+    }
+
+    /// The CDF values c_0, ..., c_{m-1}.
+    pub fn cdfs(&self) -> &'a [f32] {
+        &self.data[self.start + self.len..self.start + 2 * self.len]
+    }
+
+    #[inline(always)]
+    pub fn is_uniform(&self) -> bool {
+        self.len < 2
+    }
+
+    #[inline(always)]
+    fn x(&self, i: usize) -> f32 {
+        self.data[self.start + i]
+    }
+
+    #[inline(always)]
+    fn c(&self, i: usize) -> f32 {
+        self.data[self.start + self.len + i]
+    }
+
+    /// The density of segment i, [`segment_density`].
+    #[inline(always)]
     pub fn density(&self, i: usize) -> f32 {
-        let mass = self.cdf[i + 1] as f64 - self.cdf[i] as f64;
-        let width = self.x[i + 1] as f64 - self.x[i] as f64;
-        (mass / width) as f32
+        segment_density(self.segment(i))
     }
 
-    /// The segment i with x_i <= x < x_{i+1} (the last segment for x >= 1).
-    #[inline]
+    /// The ends of segment i.
+    #[inline(always)]
+    pub fn segment(&self, i: usize) -> Segment {
+        Segment {
+            x0: self.x(i),
+            x1: self.x(i + 1),
+            c0: self.c(i),
+            c1: self.c(i + 1),
+        }
+    }
+
+    /// The segment i with x_i <= x < x_{i+1} (the last segment for x >= 1,
+    /// the first for x < 0 or NaN), for a curve of at least two vertices.
+    ///
+    /// It is the number of inner positions x_1, ..., x_{m-2} at or below x:
+    /// x_0 = 0 and x_{m-1} = 1 need no comparison once the result is kept
+    /// in [0, m - 2].
+    #[inline(always)]
     pub fn segment_of(&self, x: f32) -> usize {
-        let last = self.x.len() - 2;
-        self.x
-            .partition_point(|&v| v <= x)
-            .saturating_sub(1)
-            .min(last)
+        count_short_or_search(Baseline, self.data, self.start + 1, self.len - 2, x)
     }
 
-    /// x = P^{-1}(u) and the segment it lies in. The segment is the one with
-    /// c_i <= u < c_{i+1}: an empty interval for a zero-mass segment, so such
-    /// a segment is never chosen. Inside it,
-    /// x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i), with the two
-    /// differences taken exactly in f64, so a nearly flat CDF segment (a steep
-    /// inverse) loses no digits to cancellation; the result is clamped into
-    /// [x_i, x_{i+1}) so that it stays in the segment after rounding to f32.
-    #[inline]
-    pub fn sample(&self, u: f32) -> (Sample1D, usize) {
+    /// The segment i with c_i <= u < c_{i+1} for u in [0, 1) (a zero-mass
+    /// segment, an empty interval, is never chosen), for a curve of at least
+    /// two vertices: the number of inner CDF values c_1, ..., c_{m-2} at or
+    /// below u, since c_0 = 0 <= u < 1 = c_{m-1}.
+    #[inline(always)]
+    pub fn segment_of_u(&self, u: f32) -> usize {
+        self.segment_of_u_with(Baseline, u)
+    }
+
+    /// [`segment_of_u`](Self::segment_of_u), comparing with `cmp`.
+    #[inline(always)]
+    pub fn segment_of_u_with<C: WindowCompare>(&self, cmp: C, u: f32) -> usize {
+        count_short_or_search(cmp, self.data, self.start + self.len + 1, self.len - 2, u)
+    }
+
+    /// [`segment_of_u`](Self::segment_of_u) for L values of u at once, by the
+    /// four-way search (the lanes' loads overlap).
+    #[inline(always)]
+    pub fn segments_of_u<C: WindowCompare, const L: usize>(
+        &self,
+        cmp: C,
+        u: [f32; L],
+    ) -> [usize; L] {
+        count_at_or_below(cmp, self.data, self.start + self.len + 1, self.len - 2, u)
+    }
+
+    /// x = P^{-1}(u), the segment i it lies in and that segment's ends (u
+    /// clamped into [0, 1)): i by [`segment_of_u`](Self::segment_of_u), x
+    /// and its density by [`segment_samples`]. The uniform stand-in gives
+    /// x = u, density 1 and the ends of [`Segment::UNIFORM`].
+    #[inline(always)]
+    pub fn sample(&self, u: f32) -> (Sample1D, usize, Segment) {
         let u = clamp_unit(u);
         if self.is_uniform() {
-            return (Sample1D { x: u, pdf: 1.0 }, 0);
+            return (Sample1D { x: u, pdf: 1.0 }, 0, Segment::UNIFORM);
         }
-        let last = self.cdf.len() - 2;
-        let i = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .saturating_sub(1)
-            .min(last);
-        let (c0, c1) = (self.cdf[i] as f64, self.cdf[i + 1] as f64);
-        let (x0, x1) = (self.x[i], self.x[i + 1]);
-        let t = ((u as f64 - c0) / (c1 - c0)).clamp(0.0, 1.0);
-        let x = (x0 as f64 + t * (x1 as f64 - x0 as f64)) as f32;
-        let x = x.clamp(x0, f32_below(x1)).min(ONE_MINUS_EPSILON);
-        (
-            Sample1D {
-                x,
-                pdf: self.density(i),
-            },
-            i,
-        )
+        let i = self.segment_of_u(u);
+        let segment = self.segment(i);
+        let ([x], [pdf]) = segment_samples(&[segment], &[u]);
+        (Sample1D { x, pdf }, i, segment)
     }
 
     /// p(x): the density of the segment holding x, 0 outside [0, 1).
-    #[inline]
+    #[inline(always)]
     pub fn pdf(&self, x: f32) -> f32 {
         if !(0.0..1.0).contains(&x) {
             return 0.0;
@@ -113,11 +180,94 @@ impl Curve<'_> {
             return 1.0;
         }
         let i = self.segment_of(x);
-        let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
-        let (x0, x1) = (self.x[i] as f64, self.x[i + 1] as f64);
+        let (c0, c1) = (self.c(i), self.c(i + 1));
+        let (x0, x1) = (self.x(i) as f64, self.x(i + 1) as f64);
         let t = ((x as f64 - x0) / (x1 - x0)).clamp(0.0, 1.0);
         ((c0 as f64 + t * (c1 as f64 - c0 as f64)) as f32).clamp(c0, c1)
     }
+}
+
+/// The ends (x_i, c_i) and (x_{i+1}, c_{i+1}) of one curve segment, with
+/// x_i < x_{i+1} and c_i <= c_{i+1}.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Segment {
+    pub x0: f32,
+    pub x1: f32,
+    pub c0: f32,
+    pub c1: f32,
+}
+
+impl Segment {
+    /// The one segment of the uniform density, (0, 0) to (1, 1): it samples
+    /// x = u with density 1, as the uniform stand-in curve does.
+    pub const UNIFORM: Segment = Segment {
+        x0: 0.0,
+        x1: 1.0,
+        c0: 0.0,
+        c1: 1.0,
+    };
+}
+
+/// The density of a segment: (c_{i+1} - c_i) / (x_{i+1} - x_i), evaluated in
+/// f64 (differences of f32 values are exact there) and rounded once.
+#[inline(always)]
+pub(crate) fn segment_density(s: Segment) -> f32 {
+    density_of(s.c1 as f64 - s.c0 as f64, s.x1 as f64 - s.x0 as f64)
+}
+
+/// mass / width, rounded once to f32: the one rounding of every density.
+#[inline(always)]
+fn density_of(mass: f64, width: f64) -> f32 {
+    (mass / width) as f32
+}
+
+/// The samples of N segments for their u, c_i <= u < c_{i+1}: the
+/// positions x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i), with the
+/// two differences taken exactly in f64, so a nearly flat CDF segment (a
+/// steep inverse) loses no digits to cancellation, clamped into
+/// [x_i, x_{i+1}) so that they stay in their segment after rounding to f32,
+/// and below 1; and the densities, as [`segment_density`] computes them.
+///
+/// One code for a single draw (N = 1) and for a batch's lanes: each step is
+/// one operation over all N values, on one array per segment end, with
+/// selects for the clamps and the largest f32 below x_{i+1} > 0 taken as its
+/// bit pattern minus one, so that the compiler turns a batch's steps into
+/// SIMD arithmetic; every lane goes through the same IEEE operations, so
+/// the results do not depend on N.
+#[inline(always)]
+pub(crate) fn segment_samples<const N: usize>(
+    seg: &[Segment; N],
+    u: &[f32; N],
+) -> ([f32; N], [f32; N]) {
+    let ends =
+        |end: fn(&Segment) -> f32| -> [f64; N] { std::array::from_fn(|l| end(&seg[l]) as f64) };
+    let (x0, x1) = (ends(|s| s.x0), ends(|s| s.x1));
+    let (c0, c1) = (ends(|s| s.c0), ends(|s| s.c1));
+    let mut t = [0.0f64; N];
+    let mut pdf = [0.0f32; N];
+    for l in 0..N {
+        t[l] = (u[l] as f64 - c0[l]) / (c1[l] - c0[l]);
+        pdf[l] = density_of(c1[l] - c0[l], x1[l] - x0[l]);
+    }
+    for t in &mut t {
+        *t = if *t < 0.0 { 0.0 } else { *t };
+        *t = if *t > 1.0 { 1.0 } else { *t };
+    }
+    let mut x = [0.0f32; N];
+    for l in 0..N {
+        x[l] = (x0[l] + t[l] * (x1[l] - x0[l])) as f32;
+    }
+    for (x, s) in x.iter_mut().zip(seg) {
+        let below_x1 = f32::from_bits(s.x1.to_bits().wrapping_sub(1));
+        *x = if *x < s.x0 { s.x0 } else { *x };
+        *x = if *x > below_x1 { below_x1 } else { *x };
+        *x = if *x > ONE_MINUS_EPSILON {
+            ONE_MINUS_EPSILON
+        } else {
+            *x
+        };
+    }
+    (x, pdf)
 }
 
 /// The smallest f32 strictly above `v` (for 0 <= v finite).

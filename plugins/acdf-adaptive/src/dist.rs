@@ -1,10 +1,15 @@
 //! Adaptive (curve-simplified) distributions over [0, 1) and [0, 1)^2.
 
-use crate::curve::{cdf_points, f32_below, prefix_sums, push_vertices, Curve, Running};
+use crate::curve::{
+    cdf_points, prefix_sums, push_vertices, segment_samples, Curve, Running, Segment,
+};
+#[cfg(target_arch = "x86_64")]
+use crate::search::Avx2;
+use crate::search::{Baseline, WindowCompare};
 use crate::simplify::{validate_tolerance, ErrorBound, Simplifier};
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
-    Vec2, ONE_MINUS_EPSILON,
+    Vec2,
 };
 
 /// Tables longer than this cannot give distinct f32 vertex positions k / n.
@@ -63,8 +68,8 @@ fn split_tolerance(simplifier: &dyn Simplifier, tolerance: f64) -> (f64, f64) {
 /// An all-zero table gives the uniform density and `integral() == 0`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AdaptiveCdf1D {
-    x: Box<[f32]>,
-    cdf: Box<[f32]>,
+    /// The m vertex positions, then the m CDF values.
+    vertices: Box<[f32]>,
     integral: f64,
 }
 
@@ -83,11 +88,7 @@ impl AdaptiveCdf1D {
         let n = values.len();
         let (mut x, mut cdf) = (Vec::new(), Vec::new());
         simplify_into(&prefix, simplifier, tolerance, &mut x, &mut cdf);
-        Ok(Self {
-            x: x.into_boxed_slice(),
-            cdf: cdf.into_boxed_slice(),
-            integral: prefix[n] / n as f64,
-        })
+        Ok(Self::from_vertices(x, &cdf, prefix[n] / n as f64))
     }
 
     /// Build with at most `budget` vertices (at least 2), for simplifiers that
@@ -117,50 +118,54 @@ impl AdaptiveCdf1D {
                 cdf.extend([0.0, 1.0]);
             }
         }
-        Ok(Self {
-            x: x.into_boxed_slice(),
-            cdf: cdf.into_boxed_slice(),
-            integral: prefix[n] / n as f64,
-        })
+        Ok(Self::from_vertices(x, &cdf, prefix[n] / n as f64))
     }
 
-    fn curve(&self) -> Curve<'_> {
-        Curve {
-            x: &self.x,
-            cdf: &self.cdf,
+    fn from_vertices(mut x: Vec<f32>, cdf: &[f32], integral: f64) -> Self {
+        x.extend_from_slice(cdf);
+        Self {
+            vertices: x.into_boxed_slice(),
+            integral,
         }
+    }
+
+    #[inline(always)]
+    fn curve(&self) -> Curve<'_> {
+        Curve::whole(&self.vertices)
     }
 
     /// The number of kept vertices (segments + 1).
     pub fn vertex_count(&self) -> usize {
-        self.x.len()
+        self.vertices.len() / 2
     }
 
     /// The kept vertex positions x_i (0 first, 1 last).
     pub fn vertex_positions(&self) -> &[f32] {
-        &self.x
+        self.curve().xs()
     }
 
     /// The CDF values c_i at the kept vertices (0 first, 1 last).
     pub fn vertex_cdf(&self) -> &[f32] {
-        &self.cdf
+        self.curve().cdfs()
     }
 
     /// The index i of the segment [x_i, x_{i+1}) holding `x` (x clamped to
     /// the last segment at and above 1, to the first below 0 and for NaN).
     pub fn segment_of(&self, x: f32) -> usize {
-        self.curve().segment_of(if x > 0.0 { x } else { 0.0 })
+        self.curve().segment_of(x)
     }
 }
 
 impl Distribution1D for AdaptiveCdf1D {
     /// x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i) on the segment
     /// with c_i <= u < c_{i+1}; pdf = (c_{i+1} - c_i) / (x_{i+1} - x_i).
+    #[inline]
     fn sample(&self, u: f32) -> Sample1D {
         self.curve().sample(u).0
     }
 
     /// (c_{i+1} - c_i) / (x_{i+1} - x_i) on the segment holding x.
+    #[inline]
     fn pdf(&self, x: f32) -> f32 {
         self.curve().pdf(x)
     }
@@ -175,9 +180,67 @@ impl Distribution1D for AdaptiveCdf1D {
         self.integral
     }
 
-    /// 4 bytes per vertex position plus 4 per CDF value.
+    /// 4 bytes per vertex position plus 4 per CDF value (the searches use
+    /// no index beyond them).
     fn storage_bytes(&self) -> usize {
-        std::mem::size_of_val(&*self.x) + std::mem::size_of_val(&*self.cdf)
+        std::mem::size_of_val(&*self.vertices)
+    }
+
+    /// The same samples as [`sample`](Distribution1D::sample), eight at a
+    /// time (see [`AdaptiveCdf2D::sample_batch`]).
+    fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = Avx2::detect() {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { self.sample_batch_avx2(avx2, u, out) };
+            return;
+        }
+        self.sample_batch_lanes(Baseline, u, out);
+    }
+}
+
+impl AdaptiveCdf1D {
+    /// [`sample_batch_lanes`](Self::sample_batch_lanes) compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn sample_batch_avx2(&self, avx2: Avx2, u: &[f32], out: &mut [Sample1D]) {
+        self.sample_batch_lanes(avx2, u, out);
+    }
+
+    /// The same samples as [`sample`](Distribution1D::sample), [`LANES`] at
+    /// a time: their segments by one search stepping all lanes together,
+    /// then their positions and densities as SIMD arithmetic.
+    #[inline(always)]
+    fn sample_batch_lanes<C: WindowCompare>(&self, cmp: C, u: &[f32], out: &mut [Sample1D]) {
+        let curve = self.curve();
+        let len = u.len().min(out.len());
+        let (u, out) = (&u[..len], &mut out[..len]);
+        // A built or decoded 1D curve always has two vertices or more.
+        let lanes = if curve.is_uniform() {
+            0
+        } else {
+            len / LANES * LANES
+        };
+        let mut u_chunks = u[..lanes].chunks_exact(LANES);
+        let mut out_chunks = out[..lanes].chunks_exact_mut(LANES);
+        for (uc, oc) in (&mut u_chunks).zip(&mut out_chunks) {
+            let ul: [f32; LANES] = std::array::from_fn(|l| clamp_unit(uc[l]));
+            let i = curve.segments_of_u(cmp, ul);
+            let seg = i.map(|i| curve.segment(i));
+            let (x, pdf) = segment_samples(&seg, &ul);
+            for (l, o) in oc.iter_mut().enumerate() {
+                *o = Sample1D {
+                    x: x[l],
+                    pdf: pdf[l],
+                };
+            }
+        }
+        for (o, &u) in out[lanes..].iter_mut().zip(&u[lanes..]) {
+            *o = self.sample(u);
+        }
     }
 }
 
@@ -197,6 +260,11 @@ impl Distribution1D for AdaptiveCdf1D {
 /// plus one, and the conditionals' vertices, all f32 (position and CDF
 /// value). A marginal segment of zero mass is never sampled and has density
 /// 0, so its conditional is stored empty.
+///
+/// Sampling and density lookups search these lists as they are, without
+/// branches that follow the random numbers (a four-way search down to a
+/// 32-entry window compared at once, see `search.rs`), so no index is
+/// derived from them and the storage is exactly the above.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AdaptiveCdf2D {
     /// The marginal's m vertex positions, then its m CDF values.
@@ -351,17 +419,20 @@ impl AdaptiveCdf2D {
                 &mut mc,
             );
         }
-        let marginal_curve = Curve { x: &mx, cdf: &mc };
+        let segments = mx.len() - 1;
+        let m_positions = mx.len();
+        mx.extend_from_slice(&mc);
+        let marginal_curve = Curve::whole(&mx);
 
         // Row boundaries of the marginal segments: vertex x = k / n_y.
         let bounds: Vec<usize> = if total > 0.0 {
-            mx.iter()
+            mx[..m_positions]
+                .iter()
                 .map(|&x| (x as f64 * n_y as f64).round() as usize)
                 .collect()
         } else {
             vec![0, n_y]
         };
-        let segments = mx.len() - 1;
         let mut offsets = Vec::with_capacity(segments + 1);
         let (mut cx, mut cc) = (Vec::new(), Vec::new());
         let mut conditionals = Vec::new();
@@ -420,7 +491,6 @@ impl AdaptiveCdf2D {
                 })?;
             offsets.push(end);
         }
-        mx.extend_from_slice(&mc);
         Ok(Self {
             marginal: mx.into_boxed_slice(),
             offsets: offsets.into_boxed_slice(),
@@ -429,12 +499,9 @@ impl AdaptiveCdf2D {
         })
     }
 
+    #[inline(always)]
     fn marginal_curve(&self) -> Curve<'_> {
-        let m = self.marginal.len() / 2;
-        Curve {
-            x: &self.marginal[..m],
-            cdf: &self.marginal[m..],
-        }
+        Curve::whole(&self.marginal)
     }
 
     /// The number of vertices kept by the marginal over y.
@@ -472,18 +539,19 @@ impl AdaptiveCdf2D {
         }
     }
 
+    /// Conditional j, the curve of marginal segment j.
+    #[inline(always)]
     fn conditional(&self, j: usize) -> Curve<'_> {
         let (a, b) = (self.offsets[j] as usize, self.offsets[j + 1] as usize);
-        let (x, cdf) = self.conditionals[2 * a..2 * b].split_at(b - a);
-        Curve { x, cdf }
+        Curve::within(&self.conditionals, 2 * a, b - a)
     }
 
     /// y from the marginal with u.y, then x from the conditional of y's
-    /// marginal segment with u.x, both by [`sample_curve`].
+    /// marginal segment with u.x; pdf = p_marginal(y) p_j(x).
     #[inline(always)]
     fn sample_inline(&self, u: Vec2) -> Sample2D {
-        let (sy, j) = sample_curve(self.marginal_curve(), u.y);
-        let (sx, _) = sample_curve(self.conditional(j), u.x);
+        let (sy, j, _) = self.marginal_curve().sample(u.y);
+        let (sx, _, _) = self.conditional(j).sample(u.x);
         Sample2D {
             p: Vec2::new(sx.x, sy.x),
             pdf: sy.pdf * sx.pdf,
@@ -496,128 +564,149 @@ impl AdaptiveCdf2D {
     /// [0, 1)^2). Cheaper than a density lookup at its four corners: a
     /// tabulated BRDF sampler can take a draw's density from the drawn cell
     /// when this holds (`acdf_uniform::SliceBuilder::same_cell_around`).
+    #[inline]
     pub fn same_segment_around(&self, p: Vec2, margin: Vec2) -> bool {
-        let inside = |curve: Curve<'_>, x: f32, m: f32| -> Option<usize> {
+        #[inline(always)]
+        fn inside(curve: Curve<'_>, x: f32, m: f32) -> Option<usize> {
             if !(x - m >= 0.0 && x + m < 1.0) {
                 return None;
             }
-            if curve.x.len() < 2 {
+            if curve.is_uniform() {
                 return Some(0);
             }
             let i = curve.segment_of(x);
-            (x - m >= curve.x[i] && x + m < curve.x[i + 1]).then_some(i)
-        };
+            let xs = curve.xs();
+            (x - m >= xs[i] && x + m < xs[i + 1]).then_some(i)
+        }
         match inside(self.marginal_curve(), p.y, margin.y) {
             Some(j) => inside(self.conditional(j), p.x, margin.x).is_some(),
             None => false,
         }
     }
 
-    /// [`sample_batch`](Distribution2D::sample_batch) compiled for AVX2 (the
-    /// segment counts become 8-wide compares); the same IEEE operations in
-    /// the same order, so the same samples.
+    /// [`sample`](Distribution2D::sample) and
+    /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
+    /// at once. A draw lies in the marginal and conditional segments it was
+    /// drawn from, so the box test reads their ends instead of searching for
+    /// them again; the sample and the answer are those of the two calls.
+    #[inline]
+    pub fn sample_and_same_segment(&self, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
+        let (sy, j, ys) = self.marginal_curve().sample(u.y);
+        let (sx, _, xs) = self.conditional(j).sample(u.x);
+        // Non-short-circuit `&`: four compares, no branches.
+        let inside = |x: f32, m: f32, s: Segment| {
+            (x - m >= 0.0) & (x + m < 1.0) & (x - m >= s.x0) & (x + m < s.x1)
+        };
+        let same = inside(sy.x, margin.y, ys) & inside(sx.x, margin.x, xs);
+        let sample = Sample2D {
+            p: Vec2::new(sx.x, sy.x),
+            pdf: sy.pdf * sx.pdf,
+        };
+        (sample, same)
+    }
+
+    /// [`sample_batch_lanes`](Self::sample_batch_lanes) compiled for AVX2
+    /// (the window counts become 8-wide compares); the same IEEE operations
+    /// in the same order, so the same samples.
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn sample_batch_avx2(&self, u: &[Vec2], out: &mut [Sample2D]) {
-        for (o, &u) in out.iter_mut().zip(u) {
+    unsafe fn sample_batch_avx2(&self, avx2: Avx2, u: &[Vec2], out: &mut [Sample2D]) {
+        self.sample_batch_lanes(avx2, u, out);
+    }
+
+    /// The same samples as [`sample`](Distribution2D::sample), [`LANES`]
+    /// draws at a time in stages (marginal segments, marginal samples,
+    /// conditional segments, conditional samples), so that the core sees
+    /// that many independent chains of loads at each stage instead of one
+    /// long chain per draw.
+    #[inline(always)]
+    fn sample_batch_lanes<C: WindowCompare>(&self, cmp: C, u: &[Vec2], out: &mut [Sample2D]) {
+        let len = u.len().min(out.len());
+        let (u, out) = (&u[..len], &mut out[..len]);
+        let marginal = self.marginal_curve();
+        let mut u_chunks = u.chunks_exact(LANES);
+        let mut out_chunks = out.chunks_exact_mut(LANES);
+        for (uc, oc) in (&mut u_chunks).zip(&mut out_chunks) {
+            let (mut ux, mut uy) = ([0.0f32; LANES], [0.0f32; LANES]);
+            for ((x, y), u) in ux.iter_mut().zip(&mut uy).zip(uc) {
+                *x = clamp_unit(u.x);
+                *y = clamp_unit(u.y);
+            }
+            let j = marginal.segments_of_u(cmp, uy);
+            let mut seg = [Segment::UNIFORM; LANES];
+            for (s, &j) in seg.iter_mut().zip(&j) {
+                *s = marginal.segment(j);
+            }
+            let sy = segment_samples(&seg, &uy);
+            for (s, (&j, &u)) in seg.iter_mut().zip(j.iter().zip(&ux)) {
+                let c = self.conditional(j);
+                *s = if c.is_uniform() {
+                    Segment::UNIFORM
+                } else {
+                    c.segment(c.segment_of_u_with(cmp, u))
+                };
+            }
+            let sx = segment_samples(&seg, &ux);
+            for (l, o) in oc.iter_mut().enumerate() {
+                *o = Sample2D {
+                    p: Vec2::new(sx.0[l], sy.0[l]),
+                    pdf: sy.1[l] * sx.1[l],
+                };
+            }
+        }
+        for (o, &u) in out_chunks
+            .into_remainder()
+            .iter_mut()
+            .zip(u_chunks.remainder())
+        {
             *o = self.sample_inline(u);
         }
     }
 }
 
-/// The longest curve whose segment is found by comparing every vertex.
-const LINEAR_CURVE: usize = 32;
-
-/// `Curve::segment_of` (the segment i with x_i <= x < x_{i+1}, the last for
-/// x >= 1) for a curve of at least two vertices, with the vertices at or
-/// below x counted without branches when the curve is short (see
-/// [`sample_curve`]); the same segment.
-#[inline(always)]
-fn segment_of(curve: Curve<'_>, x: f32) -> usize {
-    let last = curve.x.len() - 2;
-    let at_or_below = if curve.x.len() <= LINEAR_CURVE {
-        curve.x.iter().map(|&v| (v <= x) as usize).sum()
-    } else {
-        curve.x.partition_point(|&v| v <= x)
-    };
-    at_or_below.saturating_sub(1).min(last)
-}
-
-/// The curve's sample for `u`: the segment i with c_i <= u < c_{i+1}, then
-/// x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i) in `f64`, clamped
-/// into [x_i, x_{i+1}), and the segment's density. The arithmetic is
-/// `Curve::sample`'s, so the result is the same bit for bit; only the
-/// segment is found by counting the vertices at or below u (c_0 = 0 always
-/// is) when the curve is short, which a compiler turns into SIMD compares
-/// with no branch to mispredict, where a binary search's branches follow
-/// the random u.
-#[inline(always)]
-fn sample_curve(curve: Curve<'_>, u: f32) -> (Sample1D, usize) {
-    let u = clamp_unit(u);
-    if curve.x.len() < 2 {
-        return (Sample1D { x: u, pdf: 1.0 }, 0);
-    }
-    let last = curve.cdf.len() - 2;
-    let at_or_below = if curve.cdf.len() <= LINEAR_CURVE {
-        curve.cdf.iter().map(|&c| (c <= u) as usize).sum()
-    } else {
-        curve.cdf.partition_point(|&c| c <= u)
-    };
-    let i = at_or_below.saturating_sub(1).min(last);
-    let (c0, c1) = (curve.cdf[i] as f64, curve.cdf[i + 1] as f64);
-    let (x0, x1) = (curve.x[i], curve.x[i + 1]);
-    let t = ((u as f64 - c0) / (c1 - c0)).clamp(0.0, 1.0);
-    let x = (x0 as f64 + t * (x1 as f64 - x0 as f64)) as f32;
-    let x = x.clamp(x0, f32_below(x1)).min(ONE_MINUS_EPSILON);
-    (
-        Sample1D {
-            x,
-            pdf: curve.density(i),
-        },
-        i,
-    )
-}
+/// The number of draws the batch samplers advance together.
+const LANES: usize = 8;
 
 impl Distribution2D for AdaptiveCdf2D {
     /// y from the marginal with u.y, then x from the conditional of y's
     /// marginal segment with u.x; pdf = p_marginal(y) p_j(x).
+    #[inline]
     fn sample(&self, u: Vec2) -> Sample2D {
         self.sample_inline(u)
     }
 
-    /// The same samples as [`sample`](Distribution2D::sample), in one loop
-    /// (compiled for AVX2 where the CPU has it).
+    /// The same samples as [`sample`](Distribution2D::sample), eight draws
+    /// at a time (compiled for AVX2 where the CPU has it).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if let Some(avx2) = Avx2::detect() {
             // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { self.sample_batch_avx2(u, out) };
+            unsafe { self.sample_batch_avx2(avx2, u, out) };
             return;
         }
-        for (o, &u) in out.iter_mut().zip(u) {
-            *o = self.sample_inline(u);
-        }
+        self.sample_batch_lanes(Baseline, u, out);
     }
 
     /// p_marginal(y) p_j(x), 0 outside [0, 1)^2.
+    #[inline]
     fn pdf(&self, p: Vec2) -> f32 {
         if !((0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y)) {
             return 0.0;
         }
         let m = self.marginal_curve();
-        let j = segment_of(m, p.y);
+        let j = m.segment_of(p.y);
         let py = m.density(j);
         if py == 0.0 {
             return 0.0;
         }
         let c = self.conditional(j);
-        let px = if c.x.len() < 2 {
+        let px = if c.is_uniform() {
             1.0
         } else {
-            c.density(segment_of(c, p.x))
+            c.density(c.segment_of(p.x))
         };
         py * px
     }
@@ -648,88 +737,229 @@ impl Distribution2D for AdaptiveCdf2D {
 #[cfg(test)]
 mod fast_sampling_tests {
     use super::*;
+    use crate::curve::f32_below;
     use crate::simplify::DouglasPeucker;
+    use acdf_core::ONE_MINUS_EPSILON;
 
-    /// The counting search of `sample_curve` gives `Curve::sample`'s result
-    /// bit for bit, and `sample_batch` gives `sample`'s, on tables with zero
-    /// rows, peaks and flat runs, at tolerances that keep few and many
-    /// vertices (curves shorter and longer than `LINEAR_CURVE`).
-    #[test]
-    fn fast_sampling_matches_the_curve_search() {
-        let mut state = 7u64;
-        let mut next = || {
+    /// The segment of `v` by a plain binary search over all the vertices:
+    /// partition_point(e <= v) - 1, kept in [0, m - 2].
+    fn plain_segment(sorted: &[f32], v: f32) -> usize {
+        sorted
+            .partition_point(|&e| e <= v)
+            .saturating_sub(1)
+            .min(sorted.len() - 2)
+    }
+
+    /// The reference sample of a curve: the segment by a plain binary
+    /// search, then x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i) in
+    /// f64 clamped into [x_i, x_{i+1}), as the distributions were first
+    /// written.
+    fn plain_sample(curve: Curve<'_>, u: f32) -> (Sample1D, usize) {
+        let u = clamp_unit(u);
+        if curve.is_uniform() {
+            return (Sample1D { x: u, pdf: 1.0 }, 0);
+        }
+        let (xs, cdf) = (curve.xs(), curve.cdfs());
+        let i = plain_segment(cdf, u);
+        let (c0, c1) = (cdf[i] as f64, cdf[i + 1] as f64);
+        let (x0, x1) = (xs[i], xs[i + 1]);
+        let t = ((u as f64 - c0) / (c1 - c0)).clamp(0.0, 1.0);
+        let x = (x0 as f64 + t * (x1 as f64 - x0 as f64)) as f32;
+        let x = x.clamp(x0, f32_below(x1)).min(ONE_MINUS_EPSILON);
+        let pdf = ((c1 - c0) / (x1 as f64 - x0 as f64)) as f32;
+        (Sample1D { x, pdf }, i)
+    }
+
+    /// The reference density: the segment by a plain binary search.
+    fn plain_pdf(curve: Curve<'_>, x: f32) -> f32 {
+        if !(0.0..1.0).contains(&x) {
+            0.0
+        } else if curve.is_uniform() {
+            1.0
+        } else {
+            curve.density(plain_segment(curve.xs(), x))
+        }
+    }
+
+    /// A linear congruential stream of f32 in [0, 1).
+    fn stream(mut state: u64) -> impl FnMut() -> f32 {
+        move || {
             state = state
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
             (state >> 40) as f32 / (1u64 << 24) as f32
-        };
-        let (nx, ny) = (16, 96);
-        let values: Vec<f32> = (0..nx * ny)
-            .map(|k| {
-                let (x, y) = (k % nx, k / nx);
-                if y % 7 == 3 {
-                    0.0
-                } else {
-                    let peak = (-((y as f32 - 20.0) / 4.0).powi(2)).exp() * 50.0;
-                    peak + 0.1 + (x as f32 * 0.7).sin().abs()
+        }
+    }
+
+    /// The uniform numbers to test at: random ones, the ends, NaN, and every
+    /// CDF value of `cdf` with its neighbours (the segment boundaries).
+    fn numbers(next: &mut impl FnMut() -> f32, cdf: &[f32]) -> Vec<f32> {
+        let mut u: Vec<f32> = (0..1000).map(|_| next()).collect();
+        u.extend([0.0, -0.0, ONE_MINUS_EPSILON, 1.0, -1.0, f32::NAN]);
+        for &c in cdf {
+            u.extend([c, c.next_down(), c.next_up()]);
+        }
+        u
+    }
+
+    /// The branch-free searches give the plain binary search's samples and
+    /// densities bit for bit, and `sample_batch` gives `sample`'s, on tables
+    /// with zero rows, peaks and flat runs, at tolerances that keep few and
+    /// many vertices (curves that fit the counting window and longer ones
+    /// that are searched), and at the segment boundaries.
+    #[test]
+    fn fast_sampling_matches_the_curve_search() {
+        let mut next = stream(7);
+        let ny = 96;
+        for nx in [16, 48] {
+            let values: Vec<f32> = (0..nx * ny)
+                .map(|k| {
+                    let (x, y) = (k % nx, k / nx);
+                    if y % 7 == 3 {
+                        0.0
+                    } else {
+                        let peak = (-((y as f32 - 20.0) / 4.0).powi(2)).exp() * 50.0;
+                        peak + 0.1 + (x as f32 * 0.7).sin().abs()
+                    }
+                })
+                .collect();
+            let simplifier = DouglasPeucker::vertical();
+            for tolerance in [0.0, 1e-4, 1e-2] {
+                let d =
+                    AdaptiveCdf2D::from_values(&values, nx, ny, &simplifier, tolerance).unwrap();
+                let m = d.marginal_curve();
+                let uy = numbers(&mut next, m.cdfs());
+                let mut u: Vec<Vec2> = uy.iter().map(|&y| Vec2::new(next(), y)).collect();
+                for j in 0..d.conditional_count() {
+                    for &c in d.conditional(j).cdfs() {
+                        let y = m.xs()[j];
+                        u.extend([c, c.next_down(), c.next_up()].map(|x| Vec2::new(x, y)));
+                    }
                 }
-            })
-            .collect();
-        let simplifier = DouglasPeucker::vertical();
-        for tolerance in [0.0, 1e-4, 1e-2] {
-            let d = AdaptiveCdf2D::from_values(&values, nx, ny, &simplifier, tolerance).unwrap();
-            let mut u: Vec<Vec2> = (0..2000).map(|_| Vec2::new(next(), next())).collect();
-            u.extend([
-                Vec2::ZERO,
-                Vec2::splat(ONE_MINUS_EPSILON),
-                Vec2::splat(f32::NAN),
-            ]);
-            for &u in &u {
-                let (sy, j) = d.marginal_curve().sample(u.y);
-                let (sx, _) = d.conditional(j).sample(u.x);
-                let expected = Sample2D {
-                    p: Vec2::new(sx.x, sy.x),
-                    pdf: sy.pdf * sx.pdf,
-                };
-                assert_eq!(d.sample(u), expected, "tolerance {tolerance} u {u}");
+                for &u in &u {
+                    let (sy, j) = plain_sample(m, u.y);
+                    let (sx, _) = plain_sample(d.conditional(j), u.x);
+                    let expected = Sample2D {
+                        p: Vec2::new(sx.x, sy.x),
+                        pdf: sy.pdf * sx.pdf,
+                    };
+                    let s = d.sample(u);
+                    assert_eq!(s, expected, "nx {nx} tolerance {tolerance} u {u}");
+                    assert_eq!(d.pdf(s.p), s.pdf, "nx {nx} tolerance {tolerance} u {u}");
+                }
+                // Every length of batch, so the tail past the last full
+                // group of lanes is covered too.
+                for n in [u.len(), 1, 7, 8, 9, 17] {
+                    let mut out = vec![Sample2D::default(); n];
+                    d.sample_batch(&u[..n], &mut out);
+                    for (o, &u) in out.iter().zip(&u) {
+                        assert_eq!(*o, d.sample(u));
+                    }
+                }
+                let mut out = vec![Sample2D::default(); u.len()];
+                d.sample_batch(&u, &mut out);
+                // The densities at random points, at the samples and at the
+                // vertex positions are the plain search's.
+                let mut points: Vec<Vec2> = u[..500].to_vec();
+                points.extend(out.iter().map(|s| s.p));
+                for j in 0..d.conditional_count() {
+                    let y = m.xs()[j];
+                    for &x in d.conditional(j).xs() {
+                        points.extend([x, x.next_down(), x.next_up()].map(|x| Vec2::new(x, y)));
+                    }
+                }
+                for &x in m.xs() {
+                    points.extend([x, x.next_down(), x.next_up()].map(|y| Vec2::new(0.5, y)));
+                }
+                for &p in &points {
+                    let j = plain_segment(m.xs(), p.y);
+                    let py = plain_pdf(m, p.y);
+                    let expected = if py == 0.0 || !(0.0..1.0).contains(&p.x) {
+                        0.0
+                    } else {
+                        py * plain_pdf(d.conditional(j), p.x)
+                    };
+                    assert_eq!(d.pdf(p), expected, "{p}");
+                }
+                // Where the box is said to lie in one segment, the density at
+                // its corners is the density at its centre; most boxes
+                // qualify. Asked with the draw, the answer is the same.
+                let mut inside = 0;
+                for (s, &u) in out[..1000].iter().zip(&u) {
+                    for m in [1e-5f32, 1e-3, 0.05] {
+                        let margin = Vec2::splat(m);
+                        let same = d.same_segment_around(s.p, margin);
+                        assert_eq!(d.sample_and_same_segment(u, margin), (*s, same), "{u}");
+                        if same {
+                            inside += 1;
+                            for c in [
+                                Vec2::new(-1.0, -1.0),
+                                Vec2::new(-1.0, 1.0),
+                                Vec2::ONE,
+                                Vec2::new(1.0, -1.0),
+                            ] {
+                                assert_eq!(d.pdf(s.p + c * margin), s.pdf, "{s:?} {m}");
+                            }
+                        }
+                    }
+                }
+                assert!(inside > 1000, "{inside}");
             }
-            let mut out = vec![Sample2D::default(); u.len()];
+        }
+    }
+
+    /// A conditional stored empty (the uniform stand-in) gives x = u and
+    /// density 1 in `sample`, `sample_batch` and `pdf` alike, even where its
+    /// marginal segment carries mass (a decoded file may hold that).
+    #[test]
+    fn empty_conditionals_sample_uniformly_in_every_path() {
+        let d = AdaptiveCdf2D {
+            marginal: vec![0.0, 0.5, 1.0, 0.0, 0.25, 1.0].into_boxed_slice(),
+            offsets: vec![0, 0, 2].into_boxed_slice(),
+            conditionals: vec![0.0, 1.0, 0.0, 1.0].into_boxed_slice(),
+            integral: 1.0,
+        };
+        let mut next = stream(5);
+        let u: Vec<Vec2> = (0..203).map(|_| Vec2::new(next(), next())).collect();
+        let mut out = vec![Sample2D::default(); u.len()];
+        d.sample_batch(&u, &mut out);
+        for (o, &u) in out.iter().zip(&u) {
+            let s = d.sample(u);
+            assert_eq!(*o, s);
+            assert_eq!(d.pdf(s.p), s.pdf);
+            if u.y < 0.25 {
+                assert_eq!((s.p.x, s.pdf), (u.x, 0.5), "{u}");
+            }
+        }
+    }
+
+    /// The 1D distribution's searches give the plain search's samples,
+    /// densities and segments, and its `sample_batch` gives `sample`'s, for
+    /// curves of 2 to 200 vertices.
+    #[test]
+    fn fast_1d_sampling_matches_the_curve_search() {
+        let mut next = stream(11);
+        let simplifier = DouglasPeucker::vertical();
+        for n in [1, 2, 3, 5, 31, 32, 33, 34, 35, 64, 199] {
+            let values: Vec<f32> = (0..n)
+                .map(|k| if k % 5 == 2 { 0.0 } else { 0.05 + next() })
+                .collect();
+            let d = AdaptiveCdf1D::from_values(&values, &simplifier, 0.0).unwrap();
+            let curve = d.curve();
+            let u = numbers(&mut next, curve.cdfs());
+            for &u in &u {
+                let s = d.sample(u);
+                assert_eq!(s, plain_sample(curve, u).0, "n {n} u {u}");
+                assert_eq!(d.pdf(s.x), s.pdf);
+                assert_eq!(d.pdf(u), plain_pdf(curve, u), "n {n} x {u}");
+                let x = if u > 0.0 { u } else { 0.0 };
+                assert_eq!(d.segment_of(u), plain_segment(curve.xs(), x));
+            }
+            let mut out = vec![Sample1D::default(); u.len()];
             d.sample_batch(&u, &mut out);
             for (o, &u) in out.iter().zip(&u) {
                 assert_eq!(*o, d.sample(u));
             }
-            // The counting segment search gives the curves' density.
-            for &u in &u[..500] {
-                let m = d.marginal_curve();
-                let j = m.segment_of(u.y);
-                let py = m.density(j);
-                let expected = if py == 0.0 || u.is_nan() {
-                    0.0
-                } else {
-                    py * d.conditional(j).pdf(u.x)
-                };
-                assert_eq!(d.pdf(u), expected, "{u}");
-            }
-            // Where the box is said to lie in one segment, the density at its
-            // corners is the density at its centre; most boxes qualify.
-            let mut inside = 0;
-            for s in &out[..2000] {
-                for m in [1e-5f32, 1e-3, 0.05] {
-                    let margin = Vec2::splat(m);
-                    if d.same_segment_around(s.p, margin) {
-                        inside += 1;
-                        for c in [
-                            Vec2::new(-1.0, -1.0),
-                            Vec2::new(-1.0, 1.0),
-                            Vec2::ONE,
-                            Vec2::new(1.0, -1.0),
-                        ] {
-                            assert_eq!(d.pdf(s.p + c * margin), s.pdf, "{s:?} {m}");
-                        }
-                    }
-                }
-            }
-            assert!(inside > 2000, "{inside}");
         }
     }
 }

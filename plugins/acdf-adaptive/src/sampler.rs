@@ -4,7 +4,7 @@
 
 use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
 use crate::AdaptiveCdf2D;
-use acdf_core::{Brdf, Result, Vec2};
+use acdf_core::{Brdf, Result, Sample2D, Vec2};
 use acdf_uniform::{Resolution, SliceBuilder, TabulatedBrdfSampler};
 use std::sync::Arc;
 
@@ -65,6 +65,18 @@ impl SliceBuilder for AdaptiveBuilder {
     #[inline]
     fn same_cell_around(&self, dist: &AdaptiveCdf2D, p: Vec2, margin: Vec2) -> bool {
         dist.same_segment_around(p, margin)
+    }
+
+    /// The box test from the segments the draw came from, without a second
+    /// search ([`AdaptiveCdf2D::sample_and_same_segment`]).
+    #[inline]
+    fn sample_and_same_cell(
+        &self,
+        dist: &AdaptiveCdf2D,
+        u: Vec2,
+        margin: Vec2,
+    ) -> (Sample2D, bool) {
+        dist.sample_and_same_segment(u, margin)
     }
 }
 

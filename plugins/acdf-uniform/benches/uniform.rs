@@ -132,6 +132,55 @@ fn sampler(c: &mut Criterion) {
             black_box(&out);
         })
     });
+    // One outgoing direction per draw, cycling through 64 (a renderer's
+    // shading points): one call at a time, and as a wavefront.
+    let wos: Vec<Vec3> = (0..BATCH)
+        .map(|k| {
+            let t = ((k % 64) as f32 + 0.5) / 64.0;
+            spherical_direction(
+                (5.0 + 75.0 * t).to_radians(),
+                std::f32::consts::TAU * (k as f32 * 0.618_034).fract(),
+            )
+        })
+        .collect();
+    let pairs: Vec<Vec3> = wos
+        .iter()
+        .zip(&u)
+        .map(|(&wo, &u)| s.sample(wo, u).map_or(Vec3::Z, |b| b.wi))
+        .collect();
+    group.throughput(Throughput::Elements(BATCH as u64));
+    group.bench_function("sample one at a time, wo changing", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for (&wo, &u) in wos.iter().zip(&u) {
+                acc += s.sample(black_box(wo), u).map_or(0.0, |b| b.pdf);
+            }
+            black_box(acc)
+        })
+    });
+    group.bench_function("sample_each, wo changing", |b| {
+        let mut out = vec![None; BATCH];
+        b.iter(|| {
+            s.sample_each(black_box(&wos), black_box(&u), &mut out);
+            black_box(&out);
+        })
+    });
+    group.bench_function("pdf one at a time, wo changing", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for (&wo, &wi) in wos.iter().zip(&pairs) {
+                acc += s.pdf(black_box(wo), wi);
+            }
+            black_box(acc)
+        })
+    });
+    group.bench_function("pdf_each, wo changing", |b| {
+        let mut out = vec![0.0; BATCH];
+        b.iter(|| {
+            s.pdf_each(black_box(&wos), black_box(&pairs), &mut out);
+            black_box(&out);
+        })
+    });
     group.finish();
 }
 

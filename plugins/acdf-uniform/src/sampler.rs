@@ -1,11 +1,11 @@
 //! The tabulated measured-BRDF sampler: one half-vector distribution per
 //! outgoing cell, built on first use.
 
-use crate::tabulate::{
-    fast_atan2, phi_o_cell, sin_cos_turns, tabulate_slice, theta_o_cell, unit_cell, HalfMap,
-};
+use crate::distribution::{count_at_or_below, count_linear, GUIDE_WINDOW, LINEAR_ROW};
+use crate::tabulate::{phi_o_cell, tabulate_slice, unit_cell, HalfMap};
 use crate::{PiecewiseConstant2D, Resolution};
-use acdf_core::geometry::{half_vector, reflect, sin_theta, wrap_angle};
+use acdf_core::fast::{fast_atan2, sin_cos_turns};
+use acdf_core::geometry::{reflect, sin_theta, wrap_angle};
 use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use acdf_core::{
     clamp_unit, is_valid_outgoing, Brdf, BxdfSample, BxdfSampler, Distribution2D, Error, Result,
@@ -44,6 +44,26 @@ pub trait SliceBuilder: Send + Sync {
         let _ = (dist, p, margin);
         false
     }
+
+    /// `dist.sample(u)` and [`same_cell_around`](Self::same_cell_around)
+    /// of the sample, at once: a builder whose distribution can answer the
+    /// box test from the draw's own search overrides it. The default makes
+    /// the two calls.
+    #[inline(always)]
+    fn sample_and_same_cell(&self, dist: &Self::Dist, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
+        let s = dist.sample(u);
+        (s, self.same_cell_around(dist, s.p, margin))
+    }
+
+    /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
+    /// shading points), exactly as `dists[k].sample(u[k])`. The default
+    /// draws one at a time; a builder whose distribution can overlap draws
+    /// from different slices overrides it.
+    fn sample_each(&self, dists: &[&Self::Dist], u: &[Vec2], out: &mut [Sample2D]) {
+        for ((o, d), &u) in out.iter_mut().zip(dists).zip(u) {
+            *o = d.sample(u);
+        }
+    }
 }
 
 /// Builds [`PiecewiseConstant2D`] slices: the uniform tabulation itself.
@@ -73,6 +93,11 @@ impl SliceBuilder for PiecewiseConstantBuilder {
             f >= m && f <= 1.0 - m
         };
         inside(p.x, dist.nx(), margin.x) && inside(p.y, dist.ny(), margin.y)
+    }
+
+    /// The staged draws of [`PiecewiseConstant2D::sample_each`].
+    fn sample_each(&self, dists: &[&Self::Dist], u: &[Vec2], out: &mut [Sample2D]) {
+        PiecewiseConstant2D::sample_each(dists, u, out);
     }
 }
 
@@ -114,11 +139,18 @@ pub type UniformBrdfSampler = TabulatedBrdfSampler<PiecewiseConstantBuilder>;
 ///   non-finite (below the horizon, or a half vector whose recomputed cell
 ///   has zero density) is `None`.
 /// - **Speed.** The half-vector maps use polynomial sine, cosine and
-///   arctangent ([`fast_atan2`](crate::tabulate::fast_atan2),
-///   [`sin_cos_turns`](crate::tabulate::sin_cos_turns), within a few 1e-7
-///   rad), the same in `sample` and `pdf`; `sample_batch` without a cosine
-///   lobe draws the table samples through the distribution's own
-///   `sample_batch`.
+///   arctangent ([`fast_atan2`](acdf_core::fast::fast_atan2),
+///   [`sin_cos_turns`](acdf_core::fast::sin_cos_turns), within a few 1e-7
+///   rad), the same in `sample` and `pdf`, and the θ_o cell is counted
+///   from cos θ_o without an arctangent. One call is a chain of dependent
+///   steps (cell, two searches, trigonometry, reflection); where the CPU
+///   has AVX2 it runs a copy compiled for it. The batch entry points
+///   overlap many draws instead: `sample_batch` and `pdf_batch` (one wo)
+///   and `sample_each` and `pdf_each` (one wo per pair) search a chunk of
+///   draws, then compute the geometry of the whole chunk as SIMD lanes (see
+///   `sampler_batch.rs`), with results bit-identical to `sample` and `pdf`.
+///   With cosine mixing, `sample_batch`, `sample_each` and `pdf_each` take
+///   the one-at-a-time path.
 pub struct TabulatedBrdfSampler<B: SliceBuilder> {
     brdf: Arc<dyn Brdf>,
     resolution: Resolution,
@@ -127,6 +159,7 @@ pub struct TabulatedBrdfSampler<B: SliceBuilder> {
     relative_phi: bool,
     cosine_fraction: f32,
     half_map: HalfMap,
+    theta_o_cells: ThetaOCells,
     /// Whether cells are wide enough for the drawn-cell shortcut of
     /// `sample` (at most 1 / (2 [`CELL_MARGIN`]) cells per half-vector axis).
     shortcut_cells: bool,
@@ -158,6 +191,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             relative_phi: resolution.phi_o == 1,
             cosine_fraction: 0.0,
             half_map: HalfMap::new(resolution.theta_h),
+            theta_o_cells: ThetaOCells::new(resolution.theta_o),
             shortcut_cells: (resolution.theta_h.max(resolution.phi_h) as f32) * CELL_MARGIN <= 0.5,
             slices,
         })
@@ -266,11 +300,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     fn slice_for(&self, wo: Vec3) -> Option<Slice<'_, B::Dist>> {
         let res = &self.resolution;
         let sin_o = sin_theta(wo);
-        let i = theta_o_cell(fast_atan2(sin_o, wo.z), res.theta_o);
+        let i = self.theta_o_cells.cell(wo.z);
         let (j, rotation) = if self.relative_phi {
             // (cos φ_o, sin φ_o) without trigonometry; φ_o = 0 on the pole.
             let rotation = if sin_o > 0.0 {
-                Vec2::new(wo.x / sin_o, wo.y / sin_o)
+                Vec2::new(wo.x, wo.y) * (1.0 / sin_o)
             } else {
                 Vec2::X
             };
@@ -289,26 +323,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// valid wo and any wi; 0 where it cannot be drawn or is not finite.
     #[inline(always)]
     fn table_pdf(slice: &Slice<'_, B::Dist>, wo: Vec3, wi: Vec3) -> f32 {
-        if !(wi.z > 0.0) {
-            return 0.0;
-        }
-        let Some(h) = half_vector(wi, wo) else {
-            return 0.0;
-        };
-        let wo_h = wo.dot(h);
-        let sin_h = sin_theta(h);
-        let v = slice.map.v_of(sin_h, h.z).min(ONE_MINUS_EPSILON);
-        let x = unit_azimuth(slice.to_slice(h));
-        let denominator = slice.map.jacobian(v, sin_h) * 4.0 * wo_h;
-        if !(denominator > 0.0) {
-            return 0.0;
-        }
-        let p = slice.dist.pdf(Vec2::new(x, v)) / denominator;
-        if p.is_finite() {
-            p
-        } else {
-            0.0
-        }
+        slice.coordinates_of(wo, wi).table_pdf(slice.dist)
     }
 
     /// The slice of a valid wo, unless the pure cosine lobe needs none (then
@@ -333,8 +348,21 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         wo: Vec3,
         u: Vec2,
     ) -> Option<BxdfSample> {
-        let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
         let a = self.cosine_fraction;
+        if a == 0.0 {
+            // The distribution clamps u itself.
+            let slice = slice?;
+            let (s, same_cell) =
+                self.builder
+                    .sample_and_same_cell(slice.dist, u, Vec2::splat(CELL_MARGIN));
+            let draw = slice.draw(wo, s);
+            return self.finish_draw_with(
+                &draw,
+                || same_cell,
+                || self.pdf_in(Some(slice), wo, draw.wi),
+            );
+        }
+        let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
         let wi = if u.x < a {
             square_to_cosine_hemisphere(Vec2::new(clamp_unit(u.x / a), u.y))
         } else {
@@ -353,7 +381,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
 
     /// The sample for a table draw s = (x, v) with density p_xv: wi =
     /// reflect(wo, h(x, v)) and the mixed density at wi, equal to
-    /// `pdf(wo, wi)` to 1e-5 relative.
+    /// `pdf(wo, wi)` to about 2e-5 relative.
     ///
     /// `pdf(wo, wi)` recovers (x', v') from wi, which costs a normalisation,
     /// two arctangents and a table lookup. When (x', v') is certainly in a
@@ -364,12 +392,14 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// absolute, so h' is within about 6e-8 / (wo·h) of h, wo·h' is within
     /// 6e-8 / (wo·h)² relative of wo·h, and θ_h' within 6e-8 / ((wo·h)
     /// sin θ_h) relative of θ_h. The shortcut is taken when wo·h >= 1/8 and
-    /// (wo·h) sin θ_h >= 1/64, outside the polar cap row (both relative
-    /// errors are then under 4e-6, so J and wo·h, hence the density, agree
-    /// to about 1e-5), and when the slice's density is constant over a box
-    /// of half-width [`CELL_MARGIN`] around the draw (x' is within
-    /// 6e-8 · 64 / 2π < 7e-7 of x, and v' within 2e-6 of v); otherwise, and for tabulations finer than the
-    /// margin allows, the density is recomputed exactly as `pdf` does.
+    /// (wo·h) sin θ_h >= 1/128, outside the polar cap row (the relative
+    /// errors are then under 3.9e-6 for wo·h and 7.7e-6 for θ_h, so J, which
+    /// goes as θ_h^1.5 near the pole, and wo·h, hence the density, agree to
+    /// about 2e-5), and when the slice's density is constant over a box of
+    /// half-width [`CELL_MARGIN`] around the draw (x' is within
+    /// 6e-8 · 128 / 2π < 1.3e-6 of x, and v' within 4e-6 of v); otherwise,
+    /// and for tabulations finer than the margin allows, the density is
+    /// recomputed exactly as `pdf` does.
     #[inline(always)]
     fn finish_table_draw(
         &self,
@@ -377,29 +407,49 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         wo: Vec3,
         s: Sample2D,
     ) -> Option<BxdfSample> {
-        let (h, sin_h) = slice.half_of(s.p);
-        let wo_h = wo.dot(h);
-        let wi = reflect(wo, h).normalize_or_zero();
+        self.finish_draw(slice, wo, s, &slice.draw(wo, s))
+    }
+
+    /// The second half of [`finish_table_draw`](Self::finish_table_draw)
+    /// once `draw` = `slice.draw(wo, s)` is known; the batch path computes
+    /// the draws of a chunk together and ends each one here.
+    #[inline(always)]
+    fn finish_draw(
+        &self,
+        slice: &Slice<'_, B::Dist>,
+        wo: Vec3,
+        s: Sample2D,
+        draw: &TableDraw,
+    ) -> Option<BxdfSample> {
+        self.finish_draw_with(
+            draw,
+            || {
+                self.builder
+                    .same_cell_around(slice.dist, s.p, Vec2::splat(CELL_MARGIN))
+            },
+            || self.pdf_in(Some(slice), wo, draw.wi),
+        )
+    }
+
+    /// [`finish_draw`](Self::finish_draw) with the builder's box test of
+    /// the draw supplied by `same_cell` and the exact density of `draw.wi`,
+    /// `pdf(wo, wi)`, by `exact` (each called only when needed).
+    #[inline(always)]
+    fn finish_draw_with(
+        &self,
+        draw: &TableDraw,
+        same_cell: impl FnOnce() -> bool,
+        exact: impl FnOnce() -> f32,
+    ) -> Option<BxdfSample> {
+        let wi = draw.wi;
         if !(wi.z > 0.0) {
             return None;
         }
-        let shortcut = self.shortcut_cells
-            && wo_h >= 0.125
-            && wo_h * sin_h >= 1.0 / 64.0
-            && s.p.y >= slice.map.cap_top()
-            && self
-                .builder
-                .same_cell_around(slice.dist, s.p, Vec2::splat(CELL_MARGIN));
-        let pdf = if shortcut {
-            let denominator = slice.map.jacobian(s.p.y, sin_h) * 4.0 * wo_h;
-            let table = s.pdf / denominator;
-            if denominator > 0.0 && table.is_finite() {
-                self.mix_with_cosine(table, wi)
-            } else {
-                self.pdf_in(Some(slice), wo, wi)
-            }
+        let shortcut = self.shortcut_cells && draw.shortcut_geometry && same_cell();
+        let pdf = if shortcut && draw.denominator > 0.0 && draw.table.is_finite() {
+            self.mix_with_cosine(draw.table, wi)
         } else {
-            self.pdf_in(Some(slice), wo, wi)
+            exact()
         };
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
     }
@@ -444,6 +494,96 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     }
 }
 
+impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
+    /// [`BxdfSampler::sample`] itself.
+    #[inline(always)]
+    fn sample_one(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        if !is_valid_outgoing(wo) {
+            return None;
+        }
+        self.sample_in(self.slice_for_mix(wo).as_ref(), wo, u)
+    }
+
+    /// [`BxdfSampler::pdf`] itself.
+    #[inline(always)]
+    fn pdf_one(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if !is_valid_outgoing(wo) {
+            return 0.0;
+        }
+        self.pdf_in(self.slice_for_mix(wo).as_ref(), wo, wi)
+    }
+
+    /// [`sample_one`](Self::sample_one) compiled for AVX2: the same IEEE
+    /// operations (no fused multiply-adds are formed), in three-operand
+    /// instructions with blends for the selects, which saves about a
+    /// third of the instructions of the baseline x86_64 build.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn sample_avx2(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        self.sample_one(wo, u)
+    }
+
+    /// [`pdf_one`](Self::pdf_one) compiled for AVX2 (see
+    /// [`sample_avx2`](Self::sample_avx2)).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn pdf_avx2(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.pdf_one(wo, wi)
+    }
+}
+
+/// The θ_o cell of an outgoing direction found from cos θ_o = wo.z alone.
+///
+/// Cell i covers θ_o in [θ_i, θ_{i+1}) with θ_i = (π/2)(i/n)² (see
+/// [`tabulate`](crate::tabulate)), so the cell is the number of inner
+/// boundaries with z <= cos θ_i, i = 1..n-1. Counting compares z with a
+/// fixed table (stored as -cos θ_i, increasing, padded to a multiple of 8
+/// with +∞) instead of computing θ_o = atan2(sin θ_o, z) and a square root:
+/// the cell, and with it the address of the slice, is known a few cycles
+/// after wo, which shortens the chain of dependent operations every
+/// `sample` and `pdf` starts with. It agrees with
+/// [`theta_o_cell`](crate::tabulate::theta_o_cell) except within an ulp or
+/// two of a boundary. NaN gives cell 0.
+#[derive(Debug, Clone)]
+struct ThetaOCells {
+    negative_cos_bounds: Vec<f32>,
+}
+
+impl ThetaOCells {
+    fn new(n_theta_o: usize) -> Self {
+        let n = n_theta_o.max(1);
+        let mut negative_cos_bounds: Vec<f32> = (1..n)
+            .map(|i| {
+                let u = i as f64 / n as f64;
+                -(std::f64::consts::FRAC_PI_2 * u * u).cos() as f32
+            })
+            .collect();
+        let padded = negative_cos_bounds.len().div_ceil(GUIDE_WINDOW).max(1) * GUIDE_WINDOW;
+        negative_cos_bounds.resize(padded, f32::INFINITY);
+        ThetaOCells {
+            negative_cos_bounds,
+        }
+    }
+
+    /// The cell of cos θ_o = z, in [0, n).
+    #[inline(always)]
+    fn cell(&self, z: f32) -> usize {
+        // -NaN compares false with everything: cell 0.
+        let bounds = &self.negative_cos_bounds;
+        if bounds.len() <= LINEAR_ROW {
+            count_linear(bounds, -z)
+        } else {
+            count_at_or_below(bounds, -z)
+        }
+    }
+}
+
 /// The half-width, in unit coordinates, of the box around a draw over which
 /// the slice density must be constant for the drawn-cell shortcut of
 /// `sample`: 2^-16, at least seven times the bound on the error of the
@@ -464,6 +604,36 @@ struct Slice<'a, D> {
 }
 
 impl<D> Slice<'_, D> {
+    /// The slice's maps, by value.
+    #[inline(always)]
+    fn geometry(&self) -> SliceGeometry {
+        SliceGeometry {
+            rotation: self.rotation,
+            map: self.map,
+        }
+    }
+
+    /// See [`SliceGeometry::draw`].
+    #[inline(always)]
+    fn draw(&self, wo: Vec3, s: Sample2D) -> TableDraw {
+        self.geometry().draw(wo, s)
+    }
+
+    /// See [`SliceGeometry::coordinates_of`].
+    #[inline(always)]
+    fn coordinates_of(&self, wo: Vec3, wi: Vec3) -> TableCoordinates {
+        self.geometry().coordinates_of(wo, wi)
+    }
+}
+
+/// The maps between a slice's table coordinates and the shading frame.
+#[derive(Debug, Clone, Copy)]
+struct SliceGeometry {
+    rotation: Vec2,
+    map: HalfMap,
+}
+
+impl SliceGeometry {
     /// The half vector of the table sample p = (x, v) in the shading frame,
     /// (θ_h, φ_h) = ((π/2) v², 2π x) rotated, and its sin θ_h.
     #[inline(always)]
@@ -482,10 +652,110 @@ impl<D> Slice<'_, D> {
 
     /// The shading-frame vector `h` in the slice's axes (the inverse
     /// rotation).
-    #[inline]
-    fn to_slice(&self, h: Vec3) -> Vec3 {
+    #[inline(always)]
+    fn to_slice(self, h: Vec3) -> Vec3 {
         let r = self.rotation;
         Vec3::new(r.x * h.x + r.y * h.y, r.x * h.y - r.y * h.x, h.z)
+    }
+
+    /// The direction of the table draw `s` and the density its cell gives
+    /// it (see `finish_table_draw`). Free of branches, so that the batch
+    /// path's loop over a chunk of draws compiles to SIMD.
+    #[inline(always)]
+    fn draw(&self, wo: Vec3, s: Sample2D) -> TableDraw {
+        let (h, sin_h) = self.half_of(s.p);
+        let wo_h = wo.dot(h);
+        let wi = unit_reflection(wo, h);
+        let denominator = self.map.jacobian(s.p.y, sin_h) * 4.0 * wo_h;
+        // `&` rather than `&&`: no short-circuit branches.
+        let shortcut_geometry =
+            (wo_h >= 0.125) & (wo_h * sin_h >= 1.0 / 128.0) & (s.p.y >= self.map.cap_top());
+        TableDraw {
+            wi,
+            denominator,
+            table: s.pdf / denominator,
+            shortcut_geometry,
+        }
+    }
+
+    /// The table coordinates of wi and the Jacobian factor of its density
+    /// (see [`TableCoordinates`]); free of branches like [`draw`](Self::draw).
+    #[inline(always)]
+    fn coordinates_of(&self, wo: Vec3, wi: Vec3) -> TableCoordinates {
+        let sum = wi + wo;
+        let length_squared = sum.length_squared();
+        let defined = (wi.z > 0.0) & (length_squared > 1e-20) & length_squared.is_finite();
+        let h = sum / length_squared.sqrt();
+        let wo_h = wo.dot(h);
+        let sin_h = sin_theta(h);
+        let v = self.map.v_of(sin_h, h.z).min(ONE_MINUS_EPSILON);
+        let x = unit_azimuth(self.to_slice(h));
+        TableCoordinates {
+            p: Vec2::new(x, v),
+            denominator: self.map.jacobian(v, sin_h) * 4.0 * wo_h,
+            defined,
+        }
+    }
+}
+
+/// A table draw carried to the shading frame.
+#[derive(Debug, Clone, Copy, Default)]
+struct TableDraw {
+    /// wi = reflect(wo, h), unit length.
+    wi: Vec3,
+    /// J(v) · 4 (wo·h) at the drawn point.
+    denominator: f32,
+    /// The drawn cell's density over solid angle, p_xv / denominator.
+    table: f32,
+    /// Whether wo·h and θ_h are far enough from 0 (and v outside the cap
+    /// row) for `table` to stand for `pdf(wo, wi)`, given that the slice
+    /// density is constant around the draw.
+    shortcut_geometry: bool,
+}
+
+/// Where `pdf` looks a wi up: the table point (x, v) of its half vector and
+/// J(v) · 4 (wo·h).
+#[derive(Debug, Clone, Copy, Default)]
+struct TableCoordinates {
+    p: Vec2,
+    denominator: f32,
+    /// wi above the horizon and its half vector defined (wi ≠ -wo).
+    defined: bool,
+}
+
+impl TableCoordinates {
+    /// p_xv(p) / denominator, 0 where undefined or not finite.
+    #[inline(always)]
+    fn table_pdf(&self, dist: &impl Distribution2D) -> f32 {
+        if !(self.defined && self.denominator > 0.0) {
+            return 0.0;
+        }
+        let p = dist.pdf(self.p) / self.denominator;
+        if p.is_finite() {
+            p
+        } else {
+            0.0
+        }
+    }
+}
+
+/// reflect(wo, h) scaled to unit length. For unit wo and h the reflection
+/// is unit to a few ulps, |w|² = 1 + ε, and one Newton step for 1/|w|,
+/// w (3 - |w|²) / 2, leaves an error of order ε², with neither a square
+/// root nor a division; a wo far from unit length takes the full
+/// normalisation (zero for a degenerate result). Both are computed and one
+/// is selected, so that the function has no branch.
+#[inline(always)]
+fn unit_reflection(wo: Vec3, h: Vec3) -> Vec3 {
+    let w = reflect(wo, h);
+    let length_squared = w.length_squared();
+    let newton = w * (1.5 - 0.5 * length_squared);
+    let full = w * length_squared.sqrt().recip();
+    let full = if full.is_finite() { full } else { Vec3::ZERO };
+    if (length_squared - 1.0).abs() < 1e-3 {
+        newton
+    } else {
+        full
     }
 }
 
@@ -519,19 +789,23 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
     /// draw, otherwise a table draw of (x, v) and wi = reflect(wo, h); the
     /// reported density is the mixed pdf at the returned wi.
     fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        if !is_valid_outgoing(wo) {
-            return None;
+        #[cfg(target_arch = "x86_64")]
+        if batch::has_avx2() {
+            // SAFETY: the CPU has just been found to support AVX2 and FMA.
+            return unsafe { self.sample_avx2(wo, u) };
         }
-        self.sample_in(self.slice_for_mix(wo).as_ref(), wo, u)
+        self.sample_one(wo, u)
     }
 
     /// The mixed density at wi, 0 for an invalid wo, a non-finite wi or wi at
     /// or below the horizon.
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if !is_valid_outgoing(wo) {
-            return 0.0;
+        #[cfg(target_arch = "x86_64")]
+        if batch::has_avx2() {
+            // SAFETY: the CPU has just been found to support AVX2 and FMA.
+            return unsafe { self.pdf_avx2(wo, wi) };
         }
-        self.pdf_in(self.slice_for_mix(wo).as_ref(), wo, wi)
+        self.pdf_one(wo, wi)
     }
 
     /// [`sample`](BxdfSampler::sample) for each u, finding the slice once.
@@ -546,18 +820,7 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
             // table draws can go through the distribution's batch path
             // (interleaved searches) a chunk at a time.
             Some(slice) if self.cosine_fraction == 0.0 => {
-                let mut table_u = [Vec2::ZERO; BATCH_CHUNK];
-                let mut drawn = [Sample2D::default(); BATCH_CHUNK];
-                for (uc, oc) in u.chunks(BATCH_CHUNK).zip(out.chunks_mut(BATCH_CHUNK)) {
-                    let n = uc.len().min(oc.len());
-                    for (t, &u) in table_u.iter_mut().zip(&uc[..n]) {
-                        *t = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
-                    }
-                    slice.dist.sample_batch(&table_u[..n], &mut drawn[..n]);
-                    for (o, &s) in oc[..n].iter_mut().zip(&drawn[..n]) {
-                        *o = self.finish_table_draw(&slice, wo, s);
-                    }
-                }
+                self.sample_table_batch(&slice, wo, u, out);
             }
             _ => {
                 for (o, &u) in out.iter_mut().zip(u) {
@@ -573,9 +836,40 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
             out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
             return;
         }
-        let slice = self.slice_for_mix(wo);
-        for (o, &wi) in out.iter_mut().zip(wi) {
-            *o = self.pdf_in(slice.as_ref(), wo, wi);
+        match self.slice_for_mix(wo) {
+            Some(slice) if self.cosine_fraction < 1.0 => {
+                self.pdf_table_batch(&slice, wo, wi, out);
+            }
+            slice => {
+                for (o, &wi) in out.iter_mut().zip(wi) {
+                    *o = self.pdf_in(slice.as_ref(), wo, wi);
+                }
+            }
+        }
+    }
+
+    /// [`sample`](BxdfSampler::sample) for each (wo, u) pair; without a
+    /// cosine lobe the draws of a chunk are overlapped and their geometry
+    /// runs in SIMD (bit-identical to `sample`).
+    fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        if self.cosine_fraction == 0.0 {
+            self.sample_each_table(wo, u, out);
+        } else {
+            for ((o, &wo), &u) in out.iter_mut().zip(wo).zip(u) {
+                *o = self.sample(wo, u);
+            }
+        }
+    }
+
+    /// [`pdf`](BxdfSampler::pdf) for each (wo, wi) pair, the coordinates of
+    /// a chunk in SIMD when there is no cosine lobe.
+    fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        if self.cosine_fraction == 0.0 {
+            self.pdf_each_table(wo, wi, out);
+        } else {
+            for ((o, &wo), &wi) in out.iter_mut().zip(wo).zip(wi) {
+                *o = self.pdf(wo, wi);
+            }
         }
     }
 
@@ -593,7 +887,7 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
 /// φ_o index); for one φ_o cell the φ_o index is 0.
 pub fn outgoing_cell(res: &Resolution, wo: Vec3) -> (usize, usize) {
     (
-        theta_o_cell(fast_atan2(sin_theta(wo), wo.z), res.theta_o),
+        ThetaOCells::new(res.theta_o).cell(wo.z),
         if res.phi_o == 1 {
             0
         } else {
@@ -614,6 +908,9 @@ pub fn half_vector_cell(
     let x = wrap_angle(azimuth(h) - phi_offset) / TAU;
     (unit_cell(x, n_phi_h), unit_cell(v, n_theta_h))
 }
+
+#[path = "sampler_batch.rs"]
+mod batch;
 
 #[cfg(test)]
 #[path = "sampler_tests.rs"]

@@ -26,6 +26,7 @@
 //! [`validate_table`](acdf_core::validate_table).
 
 use crate::Resolution;
+use acdf_core::fast::{fast_atan2, sin_cos_turns};
 use acdf_core::geometry::{reflect, spherical_direction};
 use acdf_core::{Brdf, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
@@ -95,94 +96,6 @@ pub fn half_jacobian(v: f32, sin_theta_h: f32) -> f32 {
     PI * v * TAU * sin_theta_h
 }
 
-/// Coefficients c_k of atan(a) ≈ a Σ c_k a^{2k} on [0, 1]: the Chebyshev
-/// interpolant of atan(√t)/√t in t = a² at degree 7, converted to powers of
-/// t. Its error is below 6.4e-8 rad, under the 1.2e-7 rad of `f32` rounding
-/// of a result near π, so the approximation adds nothing a caller can see
-/// beyond an ulp or two (the tests check 4e-7 rad against `f64`).
-const ATAN_COEFFICIENTS: [f32; 8] = [
-    0.999_999_9,
-    -0.333_318_13,
-    0.199_669_62,
-    -0.140_032_9,
-    0.098_688_65,
-    -0.058_829_75,
-    0.023_780_52,
-    -0.004_559_792,
-];
-
-/// atan(a) for a in [0, 1], by the polynomial of [`ATAN_COEFFICIENTS`].
-#[inline(always)]
-fn atan_unit(a: f32) -> f32 {
-    let t = a * a;
-    let c = &ATAN_COEFFICIENTS;
-    let p = c[7];
-    let p = p * t + c[6];
-    let p = p * t + c[5];
-    let p = p * t + c[4];
-    let p = p * t + c[3];
-    let p = p * t + c[2];
-    let p = p * t + c[1];
-    let p = p * t + c[0];
-    a * p
-}
-
-/// atan2(y, x) in [-π, π] without a libm call, to within 4e-7 rad; 0 for
-/// (0, 0) and for NaN. The sampler's inverse map uses it in `sample` and
-/// `pdf` alike, so the two stay consistent exactly; its error only moves
-/// cell boundaries by a fraction of an ulp of the angle.
-#[inline(always)]
-pub fn fast_atan2(y: f32, x: f32) -> f32 {
-    let (ax, ay) = (x.abs(), y.abs());
-    let (lo, hi) = if ay > ax { (ax, ay) } else { (ay, ax) };
-    // lo / hi is NaN for 0/0 and for NaN input; the comparison sends both
-    // to 0.
-    let a = lo / hi;
-    let a = if a >= 0.0 { a.min(1.0) } else { 0.0 };
-    let mut r = atan_unit(a);
-    if ay > ax {
-        r = FRAC_PI_2 - r;
-    }
-    if x < 0.0 {
-        r = PI - r;
-    }
-    if y < 0.0 {
-        -r
-    } else {
-        r
-    }
-}
-
-/// (sin 2πt, cos 2πt) for an angle t in turns, without a libm call: the
-/// nearest quarter turn q is split off exactly and the rest (at most π/4 in
-/// magnitude) goes to Taylor polynomials of degree 9 (sine) and 8
-/// (cosine), whose truncation errors at π/4 are 1.8e-9 and 2.5e-8. The
-/// reduction is exact for |t| < 2, so the error is that of `f32` rounding,
-/// a few 1e-8 absolute.
-#[inline(always)]
-pub fn sin_cos_turns(t: f32) -> (f32, f32) {
-    // floor(4t + 1/2) by truncation of a positive number (no libm `round`
-    // without SSE4.1); exact for |t| < 2.
-    let qi = (t * 4.0 + 8.5) as i32 - 8;
-    let a = (t - qi as f32 * 0.25) * TAU;
-    let a2 = a * a;
-    let s = a
-        * (1.0
-            + a2 * (-1.0 / 6.0
-                + a2 * (1.0 / 120.0 + a2 * (-1.0 / 5040.0 + a2 * (1.0 / 362_880.0)))));
-    let c = 1.0 + a2 * (-0.5 + a2 * (1.0 / 24.0 + a2 * (-1.0 / 720.0 + a2 * (1.0 / 40_320.0))));
-    // Rotate by q quarter turns, (s, c) -> (c, -s) -> (-s, -c) -> (-c, s),
-    // with selects and sign flips instead of a four-way branch.
-    let q = qi as u32;
-    let (s, c) = if q & 1 == 1 { (c, s) } else { (s, c) };
-    let sin_sign = (q & 2) << 30;
-    let cos_sign = (q.wrapping_add(1) & 2) << 30;
-    (
-        f32::from_bits(s.to_bits() ^ sin_sign),
-        f32::from_bits(c.to_bits() ^ cos_sign),
-    )
-}
-
 /// The half-vector row map of a slice with `n_theta_h` rows: v ↦ θ_h.
 ///
 /// Rows 1.. follow θ_h = (π/2) v² ([`theta_h_of`]). The first row, the
@@ -222,41 +135,50 @@ impl HalfMap {
     }
 
     /// (sin θ_h, cos θ_h) for the row coordinate v in [0, 1].
-    #[inline]
+    ///
+    /// This and the two maps below compute both the cap and the outer
+    /// formula and select one, rather than branching: the samplers' batch
+    /// paths call them in loops over many draws, which then vectorise.
+    #[inline(always)]
     pub fn angles(&self, v: f32) -> (f32, f32) {
-        if v >= self.v1 {
-            // θ_h = (π/2) v² is v²/4 of a turn.
-            sin_cos_turns(0.25 * v * v)
-        } else {
-            let one_minus_cos = (v / self.v1) * self.one_minus_cos1;
-            let cos = 1.0 - one_minus_cos;
-            // sin² = (1 - cos)(1 + cos), exact near the pole.
-            ((one_minus_cos * (1.0 + cos)).max(0.0).sqrt(), cos)
-        }
+        // θ_h = (π/2) v² is v²/4 of a turn.
+        let (sin_outer, cos_outer) = sin_cos_turns(0.25 * v * v);
+        let one_minus_cos = (v / self.v1) * self.one_minus_cos1;
+        let cos_cap = 1.0 - one_minus_cos;
+        // sin² = (1 - cos)(1 + cos), exact near the pole.
+        let sin_cap = (one_minus_cos * (1.0 + cos_cap)).max(0.0).sqrt();
+        let outer = v >= self.v1;
+        (
+            if outer { sin_outer } else { sin_cap },
+            if outer { cos_outer } else { cos_cap },
+        )
     }
 
     /// The row coordinate v of a unit half vector with the given sin θ_h
     /// and cos θ_h (the inverse of [`angles`](Self::angles)).
-    #[inline]
+    #[inline(always)]
     pub fn v_of(&self, sin_h: f32, cos_h: f32) -> f32 {
         let theta = fast_atan2(sin_h, cos_h);
+        let outer = v_of_theta_h(theta);
+        // 1 - cos θ = sin² θ / (1 + cos θ), exact near the pole.
+        let one_minus_cos = sin_h * sin_h / (1.0 + cos_h);
+        let cap = (self.v1 * one_minus_cos / self.one_minus_cos1).min(self.v1);
         if theta >= self.theta1 {
-            v_of_theta_h(theta)
+            outer
         } else {
-            // 1 - cos θ = sin² θ / (1 + cos θ), exact near the pole.
-            let one_minus_cos = sin_h * sin_h / (1.0 + cos_h);
-            (self.v1 * one_minus_cos / self.one_minus_cos1).min(self.v1)
+            cap
         }
     }
 
     /// J(v) = dω_h / (dx dv): (π v)(2π) sin θ_h outside the cap and the
     /// constant 2π (1 - cos θ_1) / v_1 inside it.
-    #[inline]
+    #[inline(always)]
     pub fn jacobian(&self, v: f32, sin_h: f32) -> f32 {
+        let cap = TAU * self.one_minus_cos1 / self.v1;
         if v >= self.v1 {
             half_jacobian(v, sin_h)
         } else {
-            TAU * self.one_minus_cos1 / self.v1
+            cap
         }
     }
 }
@@ -288,7 +210,9 @@ pub fn tabulate_slice(
 }
 
 /// The half-vector table for an arbitrary unit `wo`: `n_theta_h` rows of
-/// `n_phi_h` values, φ_h absolute. Empty if either count is 0.
+/// `n_phi_h` values, φ_h absolute. Empty if either count is 0. Each
+/// sub-row of half vectors is one θ_h ring, whose luminances come from one
+/// [`Brdf::luminance_half_ring`] call.
 pub fn tabulate_for(brdf: &dyn Brdf, wo: Vec3, n_theta_h: usize, n_phi_h: usize) -> Vec<f32> {
     let mut values = vec![0.0f32; n_theta_h * n_phi_h];
     if values.is_empty() {
@@ -306,16 +230,22 @@ pub fn tabulate_for(brdf: &dyn Brdf, wo: Vec3, n_theta_h: usize, n_phi_h: usize)
         .collect();
     let weight = 1.0 / (sub * sub) as f64;
     let map = HalfMap::new(n_theta_h);
+    // One sub-row of half vectors is a ring at one θ_h: the BRDF evaluates
+    // its luminance in one call (a measured table hoists its θ_h work).
+    let mut ring = vec![0.0f32; columns.len()];
     for (iy, row) in values.chunks_exact_mut(n_phi_h).enumerate() {
         for t in 0..sub {
             let v = (iy as f32 + (t as f32 + 0.5) * inv_sub) / n_theta_h as f32;
             let (sin_h, cos_h) = map.angles(v);
             let jacobian = map.jacobian(v, sin_h);
+            brdf.luminance_half_ring(wo, (sin_h, cos_h), &columns, &mut ring);
             for (ix, cell) in row.iter_mut().enumerate() {
                 let mut acc = 0.0f64;
-                for &(cos_p, sin_p) in &columns[ix * sub..(ix + 1) * sub] {
+                let sub_columns = ix * sub..(ix + 1) * sub;
+                let luminances = &ring[sub_columns.clone()];
+                for (&(cos_p, sin_p), &y) in columns[sub_columns].iter().zip(luminances) {
                     let h = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
-                    acc += incident_density(brdf, wo, h) as f64 * jacobian as f64;
+                    acc += density_with(wo, h, |_| y) as f64 * jacobian as f64;
                 }
                 let mean = *cell as f64 + acc * weight;
                 *cell = mean as f32;
@@ -335,6 +265,14 @@ pub fn tabulate_for(brdf: &dyn Brdf, wo: Vec3, n_theta_h: usize, n_phi_h: usize)
 /// wo·h ≤ 0 or wi is at or below the horizon, and for non-finite results.
 #[inline]
 pub fn incident_density(brdf: &dyn Brdf, wo: Vec3, h: Vec3) -> f32 {
+    density_with(wo, h, |wi| brdf.luminance(wo, wi))
+}
+
+/// [`incident_density`] with the luminance Y(f(wo, wi)) given by
+/// `luminance(wi)`, called only for the half vectors that reflect wo above
+/// the horizon.
+#[inline(always)]
+fn density_with(wo: Vec3, h: Vec3, luminance: impl FnOnce(Vec3) -> f32) -> f32 {
     let wo_h = wo.dot(h);
     if !(wo_h > 0.0) {
         return 0.0;
@@ -343,7 +281,7 @@ pub fn incident_density(brdf: &dyn Brdf, wo: Vec3, h: Vec3) -> f32 {
     if !(wi.z > 0.0) {
         return 0.0;
     }
-    let g = brdf.luminance(wo, wi) * wi.z * 4.0 * wo_h;
+    let g = luminance(wi) * wi.z * 4.0 * wo_h;
     if g.is_finite() && g > 0.0 {
         g
     } else {
@@ -462,34 +400,6 @@ mod tests {
             }
         }
         assert!(map.jacobian(0.0, 0.0) > 0.0);
-    }
-
-    /// The polynomial arctangent and sine/cosine are within their stated
-    /// bounds of the `f64` functions over a dense grid of every quadrant.
-    #[test]
-    fn fast_trigonometry_is_accurate() {
-        let mut worst_atan = 0.0f64;
-        for k in 0..20_000 {
-            let a = k as f64 / 20_000.0 * std::f64::consts::TAU;
-            for r in [1e-6, 0.3, 1.0, 7.0] {
-                let (y, x) = ((r * a.sin()) as f32, (r * a.cos()) as f32);
-                let exact = (y as f64).atan2(x as f64);
-                worst_atan = worst_atan.max((fast_atan2(y, x) as f64 - exact).abs());
-            }
-        }
-        assert!(worst_atan < 4e-7, "atan2 error {worst_atan}");
-        assert_eq!(fast_atan2(0.0, 0.0), 0.0);
-        assert_eq!(fast_atan2(f32::NAN, 1.0), 0.0);
-        let mut worst_sin_cos = 0.0f64;
-        for k in 0..=40_000 {
-            let t = k as f32 / 40_000.0 * 1.5 - 0.25;
-            let (s, c) = sin_cos_turns(t);
-            let a = t as f64 * std::f64::consts::TAU;
-            worst_sin_cos = worst_sin_cos
-                .max((s as f64 - a.sin()).abs())
-                .max((c as f64 - a.cos()).abs());
-        }
-        assert!(worst_sin_cos < 2e-7, "sin/cos error {worst_sin_cos}");
     }
 
     #[test]

@@ -1,0 +1,371 @@
+//! Branch-free segment searches over the sorted vertex lists of a curve.
+//!
+//! Every search here returns the number of entries `<= v` of a
+//! non-decreasing list, which is exactly what `partition_point(|&e| e <= v)`
+//! returns, so the segment a sample or a density lookup lands in does not
+//! depend on which search found it. What differs is the cost: a binary
+//! search over ~100 vertices takes seven branches that follow the random
+//! `v` and mispredict about half the time (some 15 cycles each), whereas
+//! these searches compare without data-dependent branches: a list of up to
+//! [`WINDOW`] entries (every conditional over 32 φ_h columns) is compared
+//! all at once, a longer one (a marginal over 256 θ_h rows) is first cut
+//! down to such a window by a four-way search.
+//!
+//! Nothing here is stored: the searches read the persisted vertex lists as
+//! they are, so `storage_bytes` has nothing to add for them.
+
+/// The number of entries compared at once; a conditional over 32 φ_h
+/// columns has at most 33 vertices, whose inner 31 fit.
+pub(crate) const WINDOW: usize = 32;
+
+/// For each lane l, the number of entries of the non-decreasing list
+/// `data[start..start + len]` that are `<= v[l]` (all lanes share the list).
+///
+/// A four-way search cuts the list down to at most [`WINDOW`] candidates,
+/// which [`count_window`] then compares at once. The candidates for the
+/// answer are kept as an interval [lo, lo + n]: three probes split it into
+/// quarters of q = floor(n / 4) entries, and the number of probes at or
+/// below v (added as integers, so no branch) says which quarter holds the
+/// answer; the interval keeps the last quarter's length n - 3q in every
+/// case, which is never shorter than the others, so the number of steps
+/// depends on `len` only. The lanes thus step together, and their
+/// independent loads overlap.
+#[inline(always)]
+pub(crate) fn count_at_or_below<C: WindowCompare, const L: usize>(
+    cmp: C,
+    data: &[f32],
+    start: usize,
+    len: usize,
+    v: [f32; L],
+) -> [usize; L] {
+    let mut lo = [start; L];
+    let mut n = len;
+    // Below WINDOW entries in all, a window cannot be read: search to the end.
+    let stop = if data.len() >= WINDOW { WINDOW } else { 3 };
+    while n > stop {
+        let q = n / 4;
+        for (lo, &v) in lo.iter_mut().zip(&v) {
+            let probe = |k: usize| (data[*lo + k * q - 1] <= v) as usize;
+            let quarters = probe(1) + probe(2) + probe(3);
+            *lo += q * quarters;
+        }
+        n -= 3 * q;
+    }
+    for (lo, &v) in lo.iter_mut().zip(&v) {
+        *lo = *lo - start
+            + if stop == WINDOW {
+                count_window(cmp, data, *lo, n, v)
+            } else {
+                count_few(data, *lo, n, v)
+            };
+    }
+    lo
+}
+
+/// The number of entries of `data[start..start + n]`, n <= 3, that are
+/// `<= v` (n depends on the list's length only, so its branches are
+/// predicted).
+#[inline(always)]
+fn count_few(data: &[f32], start: usize, n: usize, v: f32) -> usize {
+    let at_or_below = |k: usize| (data[start + k] <= v) as usize;
+    let mut count = 0;
+    if n >= 1 {
+        count += at_or_below(0);
+    }
+    if n >= 2 {
+        count += at_or_below(1);
+    }
+    if n >= 3 {
+        count += at_or_below(2);
+    }
+    count
+}
+
+/// The number of entries of the non-decreasing `data[start..start + len]`
+/// that are `<= v`, for `len <= WINDOW <= data.len()`.
+///
+/// It compares a fixed window of [`WINDOW`] entries holding the list at once
+/// and reads the answer off the bit mask of the comparisons: the list's
+/// entries at or below v come first, so the count is the run of ones from
+/// the list's first bit, cut at `len` (the entries around the list may be
+/// anything). The window starts at the list, or ends at the end of `data`
+/// when it would run past it. No loop whose trip count changes from draw to
+/// draw, no data-dependent branch.
+#[inline(always)]
+pub(crate) fn count_window<C: WindowCompare>(
+    cmp: C,
+    data: &[f32],
+    start: usize,
+    len: usize,
+    v: f32,
+) -> usize {
+    let first = start.min(data.len() - WINDOW);
+    let window: &[f32; WINDOW] = data[first..first + WINDOW]
+        .try_into()
+        .expect("a window of WINDOW entries");
+    // A u64 so that the shift (at most WINDOW, for an empty list at the very
+    // end) is defined.
+    let mask = u64::from(cmp.at_or_below_mask(window, v)) >> (start - first);
+    (mask.trailing_ones() as usize).min(len)
+}
+
+/// Bit k set where `window[k] <= v`, by four-wide SSE compares whose lanes
+/// are narrowed to bytes and gathered into one mask per 16 entries (x86-64
+/// always has SSE2).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn at_or_below_mask(window: &[f32; WINDOW], v: f32) -> u32 {
+    use std::arch::x86_64::{
+        _mm_castps_si128, _mm_cmple_ps, _mm_loadu_ps, _mm_movemask_epi8, _mm_packs_epi16,
+        _mm_packs_epi32, _mm_set1_ps,
+    };
+    // SAFETY: SSE2 is part of the x86-64 baseline, and every load reads four
+    // floats inside `window` (offsets 0, 4, ..., 28 of a 32-float array).
+    unsafe {
+        let v = _mm_set1_ps(v);
+        let at = |k: usize| _mm_castps_si128(_mm_cmple_ps(_mm_loadu_ps(window[k..].as_ptr()), v));
+        // Each comparison lane is 0 or -1, which the saturating packs keep,
+        // in order: 16 byte lanes for entries k..k + 16.
+        let sixteen = |k: usize| {
+            let low = _mm_packs_epi32(at(k), at(k + 4));
+            let high = _mm_packs_epi32(at(k + 8), at(k + 12));
+            _mm_movemask_epi8(_mm_packs_epi16(low, high)) as u32
+        };
+        sixteen(0) | sixteen(16) << 16
+    }
+}
+
+/// Bit k set where `window[k] <= v`.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn at_or_below_mask(window: &[f32; WINDOW], v: f32) -> u32 {
+    window
+        .iter()
+        .enumerate()
+        .fold(0, |mask, (k, &e)| mask | ((e <= v) as u32) << k)
+}
+
+/// The number of entries of the non-decreasing `data[start..start + len]`
+/// that are `<= v`: [`count_window`] for a short list, else
+/// [`count_at_or_below`].
+#[inline(always)]
+pub(crate) fn count_short_or_search<C: WindowCompare>(
+    cmp: C,
+    data: &[f32],
+    start: usize,
+    len: usize,
+    v: f32,
+) -> usize {
+    if len <= WINDOW && data.len() >= WINDOW {
+        count_window(cmp, data, start, len, v)
+    } else {
+        count_at_or_below(cmp, data, start, len, [v])[0]
+    }
+}
+
+/// How a window of [`WINDOW`] entries is compared with a value: bit k of
+/// the mask is set where `window[k] <= v`. One implementation per
+/// instruction set, all giving the same mask.
+pub(crate) trait WindowCompare: Copy {
+    fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32;
+}
+
+/// Compares with the instructions every target of the build has.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Baseline;
+
+impl WindowCompare for Baseline {
+    #[inline(always)]
+    fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32 {
+        at_or_below_mask(window, v)
+    }
+}
+
+/// Compares eight entries per instruction with AVX2. A value of this type
+/// exists only once the CPU has been found to support AVX2, so holding one
+/// is what makes its use sound.
+#[cfg(target_arch = "x86_64")]
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Avx2(());
+
+#[cfg(target_arch = "x86_64")]
+impl Avx2 {
+    /// The token, if this CPU supports AVX2.
+    #[inline]
+    pub fn detect() -> Option<Avx2> {
+        std::arch::is_x86_feature_detected!("avx2").then_some(Avx2(()))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl WindowCompare for Avx2 {
+    #[inline(always)]
+    fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32 {
+        // SAFETY: an `Avx2` exists only where AVX2 was detected.
+        unsafe { at_or_below_mask_avx2(window, v) }
+    }
+}
+
+/// [`at_or_below_mask`] with eight-wide compares: four compares, their
+/// lanes narrowed to bytes by two packs (which work within 128-bit halves,
+/// leaving the 4-entry groups in the order 0, 2, 4, 6, 1, 3, 5, 7), the
+/// groups put back in order, and one byte mask.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn at_or_below_mask_avx2(window: &[f32; WINDOW], v: f32) -> u32 {
+    use std::arch::x86_64::{
+        _mm256_castps_si256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_epi8,
+        _mm256_packs_epi16, _mm256_packs_epi32, _mm256_permutevar8x32_epi32, _mm256_set1_ps,
+        _mm256_setr_epi32, _CMP_LE_OQ,
+    };
+    let v = _mm256_set1_ps(v);
+    // SAFETY: each load reads eight floats inside `window` (offsets 0, 8,
+    // 16, 24 of a 32-float array).
+    let at = |k: usize| unsafe {
+        _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(
+            _mm256_loadu_ps(window[k..].as_ptr()),
+            v,
+        ))
+    };
+    let low = _mm256_packs_epi32(at(0), at(8));
+    let high = _mm256_packs_epi32(at(16), at(24));
+    let bytes = _mm256_packs_epi16(low, high);
+    let ordered = _mm256_permutevar8x32_epi32(bytes, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
+    _mm256_movemask_epi8(ordered) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Both compares give the same mask on every pattern of one window.
+    #[test]
+    fn compares_agree() {
+        let mut state = 3u64;
+        for _ in 0..2000 {
+            let window: [f32; WINDOW] = std::array::from_fn(|_| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+                [0.0, 0.5, 1.0, f32::NAN, -0.0][(state >> 61) as usize % 5]
+            });
+            for v in [0.0, 0.5, 1.0, f32::NAN, 0.25] {
+                let expected = window
+                    .iter()
+                    .enumerate()
+                    .fold(0u32, |m, (k, &e)| m | ((e <= v) as u32) << k);
+                assert_eq!(Baseline.at_or_below_mask(&window, v), expected);
+                #[cfg(target_arch = "x86_64")]
+                if let Some(avx2) = Avx2::detect() {
+                    assert_eq!(avx2.at_or_below_mask(&window, v), expected);
+                }
+            }
+        }
+    }
+
+    fn plain(list: &[f32], v: f32) -> usize {
+        list.partition_point(|&e| e <= v)
+    }
+
+    /// A sorted list from arbitrary values, with runs of equal entries when
+    /// `repeat` says so (flat CDF segments give those).
+    fn sorted(mut values: Vec<f32>, repeat: &[bool]) -> Vec<f32> {
+        values.sort_by(f32::total_cmp);
+        for k in 1..values.len() {
+            if repeat.get(k).copied().unwrap_or(false) {
+                values[k] = values[k - 1];
+            }
+        }
+        values
+    }
+
+    /// Every search, with every compare this CPU has, counts `expected`.
+    fn check(data: &[f32], start: usize, len: usize, v: f32, expected: usize) {
+        let list = &data[start..start + len];
+        let counts = [
+            count_at_or_below(Baseline, data, start, len, [v])[0],
+            count_short_or_search(Baseline, data, start, len, v),
+        ];
+        assert_eq!(counts, [expected; 2], "list {list:?} v {v}");
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = Avx2::detect() {
+            let counts = [
+                count_at_or_below(avx2, data, start, len, [v])[0],
+                count_short_or_search(avx2, data, start, len, v),
+            ];
+            assert_eq!(counts, [expected; 2], "list {list:?} v {v}");
+        }
+    }
+
+    /// The probes to compare at: every entry, its neighbours, the ends, NaN.
+    fn probes(list: &[f32]) -> Vec<f32> {
+        let mut v = vec![-1.0, 0.0, 0.5, 1.0, 2.0, f32::NAN, f32::INFINITY];
+        for &e in list {
+            v.extend([e, e.next_down(), e.next_up()]);
+        }
+        v
+    }
+
+    /// Every search equals `partition_point` on every length up to 300, on
+    /// lists with long runs of equal entries (adversarial for a search that
+    /// assumed distinct vertices), at every entry and its neighbours.
+    #[test]
+    fn searches_equal_partition_point_on_runs_and_every_length() {
+        for len in 0..300usize {
+            for pattern in 0..3 {
+                let list: Vec<f32> = (0..len)
+                    .map(|k| match pattern {
+                        0 => k as f32 / 300.0,
+                        1 => (k / 7) as f32 / 64.0,
+                        _ => {
+                            if k < len / 2 {
+                                0.0
+                            } else {
+                                1.0
+                            }
+                        }
+                    })
+                    .collect();
+                // Embedded in a larger buffer, as the conditionals are,
+                // with a window running past the end or not.
+                let mut data = vec![9.0f32; 5];
+                data.extend(&list);
+                if len % 2 == 0 {
+                    data.extend([-3.0; WINDOW]);
+                }
+                for v in probes(&list) {
+                    let expected = plain(&list, v);
+                    check(&data, 5, len, v, expected);
+                    let lanes = count_at_or_below(Baseline, &data, 5, len, [v, 0.25, -1.0, 7.0]);
+                    assert_eq!(lanes, [expected, plain(&list, 0.25), 0, len]);
+                }
+            }
+        }
+    }
+
+    proptest! {
+        /// On random sorted lists with repeats, placed anywhere in a buffer
+        /// (the window may run to its very end), every search equals
+        /// `partition_point`.
+        #[test]
+        fn searches_equal_partition_point(
+            values in prop::collection::vec(0.0f32..1.0, 0..80),
+            repeat in prop::collection::vec(any::<bool>(), 80),
+            before in 0usize..40,
+            after in 0usize..40,
+            v in prop::sample::select(vec![0.0f32, 0.3, 0.999, 1.0, -0.0]),
+        ) {
+            let list = sorted(values, &repeat);
+            let mut data = vec![0.5f32; before];
+            data.extend(&list);
+            data.extend(std::iter::repeat_n(-1.0, after));
+            for v in probes(&list).into_iter().chain([v]) {
+                let expected = plain(&list, v);
+                check(&data, before, list.len(), v, expected);
+            }
+        }
+    }
+}

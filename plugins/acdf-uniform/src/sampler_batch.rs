@@ -1,0 +1,427 @@
+//! The batch paths of [`TabulatedBrdfSampler`]: a chunk of draws (or of
+//! densities) for one outgoing direction at a time.
+//!
+//! A draw is a table search, then about a hundred operations of geometry
+//! (two sine/cosine pairs, a reflection, a Jacobian), then a check of the
+//! drawn cell. The searches go through the distribution's own
+//! `sample_batch`; the geometry of the whole chunk runs as one loop over
+//! lanes ([`Slice::draw`] and [`Slice::coordinates_of`] have no branches),
+//! which the compiler turns into SIMD, 8 lanes wide where the CPU has AVX2
+//! (selected at run time); the per-draw checks and any exact recomputation
+//! follow lane by lane. Each lane runs the same IEEE operations in the same
+//! order as the one-at-a-time path (no fused multiply-adds are formed), so
+//! the batch results are bit-identical to `sample` and `pdf`.
+
+// The lane loops index several arrays of one chunk by the same lane
+// number; that is the layout the vectoriser wants, not an iterator chain.
+#![allow(clippy::needless_range_loop)]
+
+use super::{
+    Slice, SliceGeometry, TableCoordinates, TableDraw, TabulatedBrdfSampler, BATCH_CHUNK,
+    CELL_MARGIN,
+};
+use crate::tabulate::HalfMap;
+use crate::SliceBuilder;
+use acdf_core::{clamp_unit, is_valid_outgoing, BxdfSample, Distribution2D, Sample2D, Vec2, Vec3};
+
+/// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(super) fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+}
+
+/// The geometry of a chunk of draws, one array per quantity (the layout
+/// the SIMD loop reads and writes).
+struct DrawLanes {
+    wi_x: [f32; BATCH_CHUNK],
+    wi_y: [f32; BATCH_CHUNK],
+    wi_z: [f32; BATCH_CHUNK],
+    denominator: [f32; BATCH_CHUNK],
+    table: [f32; BATCH_CHUNK],
+    shortcut_geometry: [bool; BATCH_CHUNK],
+}
+
+impl DrawLanes {
+    fn new() -> Self {
+        DrawLanes {
+            wi_x: [0.0; BATCH_CHUNK],
+            wi_y: [0.0; BATCH_CHUNK],
+            wi_z: [0.0; BATCH_CHUNK],
+            denominator: [0.0; BATCH_CHUNK],
+            table: [0.0; BATCH_CHUNK],
+            shortcut_geometry: [false; BATCH_CHUNK],
+        }
+    }
+
+    /// Lane l as the one-at-a-time path has it.
+    #[inline(always)]
+    fn get(&self, l: usize) -> TableDraw {
+        TableDraw {
+            wi: Vec3::new(self.wi_x[l], self.wi_y[l], self.wi_z[l]),
+            denominator: self.denominator[l],
+            table: self.table[l],
+            shortcut_geometry: self.shortcut_geometry[l],
+        }
+    }
+}
+
+/// The table coordinates of a chunk of incident directions, one array per
+/// quantity.
+struct CoordinateLanes {
+    x: [f32; BATCH_CHUNK],
+    v: [f32; BATCH_CHUNK],
+    denominator: [f32; BATCH_CHUNK],
+    defined: [bool; BATCH_CHUNK],
+}
+
+impl CoordinateLanes {
+    fn new() -> Self {
+        CoordinateLanes {
+            x: [0.0; BATCH_CHUNK],
+            v: [0.0; BATCH_CHUNK],
+            denominator: [0.0; BATCH_CHUNK],
+            defined: [false; BATCH_CHUNK],
+        }
+    }
+
+    /// Lane l as the one-at-a-time path has it.
+    #[inline(always)]
+    fn get(&self, l: usize) -> TableCoordinates {
+        TableCoordinates {
+            p: Vec2::new(self.x[l], self.v[l]),
+            denominator: self.denominator[l],
+            defined: self.defined[l],
+        }
+    }
+}
+
+/// Where each lane of a chunk takes its outgoing direction and slice axes
+/// from: one pair for the whole chunk (`sample_batch`, `pdf_batch`) or one
+/// per lane (`sample_each`, `pdf_each`).
+trait LaneFrames {
+    fn wo(&self, l: usize) -> Vec3;
+    fn geometry(&self, l: usize) -> SliceGeometry;
+}
+
+/// One outgoing direction and slice for every lane.
+struct OneFrame {
+    wo: Vec3,
+    geometry: SliceGeometry,
+}
+
+impl LaneFrames for OneFrame {
+    #[inline(always)]
+    fn wo(&self, _: usize) -> Vec3 {
+        self.wo
+    }
+
+    #[inline(always)]
+    fn geometry(&self, _: usize) -> SliceGeometry {
+        self.geometry
+    }
+}
+
+/// [`SliceGeometry::draw`] of every lane, into `out`. The frames are read
+/// by value, so the loop body depends on nothing the stores could change.
+#[inline(always)]
+fn draw_lanes_generic<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
+    for l in 0..drawn.len().min(BATCH_CHUNK) {
+        let d = frames.geometry(l).draw(frames.wo(l), drawn[l]);
+        out.wi_x[l] = d.wi.x;
+        out.wi_y[l] = d.wi.y;
+        out.wi_z[l] = d.wi.z;
+        out.denominator[l] = d.denominator;
+        out.table[l] = d.table;
+        out.shortcut_geometry[l] = d.shortcut_geometry;
+    }
+}
+
+/// [`SliceGeometry::coordinates_of`] of every lane, into `out`.
+#[inline(always)]
+fn coordinate_lanes_generic<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut CoordinateLanes) {
+    for l in 0..wi.len().min(BATCH_CHUNK) {
+        let c = frames.geometry(l).coordinates_of(frames.wo(l), wi[l]);
+        out.x[l] = c.p.x;
+        out.v[l] = c.p.y;
+        out.denominator[l] = c.denominator;
+        out.defined[l] = c.defined;
+    }
+}
+
+/// [`draw_lanes_generic`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn draw_lanes_avx2<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
+    draw_lanes_generic(frames, drawn, out);
+}
+
+/// [`coordinate_lanes_generic`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn coordinate_lanes_avx2<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut CoordinateLanes) {
+    coordinate_lanes_generic(frames, wi, out);
+}
+
+/// The table draws of a chunk carried to the shading frame.
+fn draw_lanes<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU has just been found to support AVX2 and FMA.
+        unsafe { draw_lanes_avx2(frames, drawn, out) };
+        return;
+    }
+    draw_lanes_generic(frames, drawn, out);
+}
+
+/// The table coordinates of a chunk of incident directions.
+fn coordinate_lanes<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut CoordinateLanes) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU has just been found to support AVX2 and FMA.
+        unsafe { coordinate_lanes_avx2(frames, wi, out) };
+        return;
+    }
+    coordinate_lanes_generic(frames, wi, out);
+}
+
+impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
+    /// Table draws for every u (no cosine lobe), a chunk at a time: the
+    /// searches by the distribution's `sample_batch`, the geometry by
+    /// [`Slice::draw_lanes`], then each draw's check.
+    pub(super) fn sample_table_batch(
+        &self,
+        slice: &Slice<'_, B::Dist>,
+        wo: Vec3,
+        u: &[Vec2],
+        out: &mut [Option<BxdfSample>],
+    ) {
+        let mut table_u = [Vec2::ZERO; BATCH_CHUNK];
+        let mut drawn = [Sample2D::default(); BATCH_CHUNK];
+        let mut draws = DrawLanes::new();
+        let mut wi = [Vec3::ZERO; BATCH_CHUNK];
+        let mut coordinates = CoordinateLanes::new();
+        let frame = OneFrame {
+            wo,
+            geometry: slice.geometry(),
+        };
+        for (uc, oc) in u.chunks(BATCH_CHUNK).zip(out.chunks_mut(BATCH_CHUNK)) {
+            let n = uc.len().min(oc.len());
+            for (t, &u) in table_u.iter_mut().zip(&uc[..n]) {
+                *t = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+            }
+            slice.dist.sample_batch(&table_u[..n], &mut drawn[..n]);
+            draw_lanes(&frame, &drawn[..n], &mut draws);
+            // The exact density of every draw's wi, as `pdf` finds it, for
+            // the draws whose cell check fails: cheaper for the whole chunk
+            // in SIMD than one by one.
+            for (l, w) in wi[..n].iter_mut().enumerate() {
+                *w = Vec3::new(draws.wi_x[l], draws.wi_y[l], draws.wi_z[l]);
+            }
+            coordinate_lanes(&frame, &wi[..n], &mut coordinates);
+            for (l, (o, &s)) in oc[..n].iter_mut().zip(&drawn[..n]).enumerate() {
+                *o = self.finish_draw_with(
+                    &draws.get(l),
+                    || {
+                        self.builder
+                            .same_cell_around(slice.dist, s.p, Vec2::splat(CELL_MARGIN))
+                    },
+                    || self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi[l]),
+                );
+            }
+        }
+    }
+
+    /// The mixed density at every wi, a chunk at a time: the coordinates
+    /// by [`Slice::coordinate_lanes`], then each table lookup.
+    pub(super) fn pdf_table_batch(
+        &self,
+        slice: &Slice<'_, B::Dist>,
+        wo: Vec3,
+        wi: &[Vec3],
+        out: &mut [f32],
+    ) {
+        let mut coordinates = CoordinateLanes::new();
+        let frame = OneFrame {
+            wo,
+            geometry: slice.geometry(),
+        };
+        for (wc, oc) in wi.chunks(BATCH_CHUNK).zip(out.chunks_mut(BATCH_CHUNK)) {
+            let n = wc.len().min(oc.len());
+            coordinate_lanes(&frame, &wc[..n], &mut coordinates);
+            for (l, (o, &wi)) in oc[..n].iter_mut().zip(&wc[..n]).enumerate() {
+                *o = if wi.is_finite() && wi.z > 0.0 {
+                    self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi)
+                } else {
+                    0.0
+                };
+            }
+        }
+    }
+}
+
+/// The outgoing side of a chunk with one wo per lane: the direction, the
+/// rotation of its slice and the slice's distribution (`None` for an
+/// invalid wo or a slice that failed to build).
+struct OutgoingLanes<'a, D> {
+    wo_x: [f32; BATCH_CHUNK],
+    wo_y: [f32; BATCH_CHUNK],
+    wo_z: [f32; BATCH_CHUNK],
+    rotation_x: [f32; BATCH_CHUNK],
+    rotation_y: [f32; BATCH_CHUNK],
+    dist: [Option<&'a D>; BATCH_CHUNK],
+    map: HalfMap,
+}
+
+impl<'a, D: Distribution2D> OutgoingLanes<'a, D> {
+    /// The slices of `wo`, found lane by lane.
+    fn find<B: SliceBuilder<Dist = D>>(sampler: &'a TabulatedBrdfSampler<B>, wo: &[Vec3]) -> Self {
+        let mut lanes = OutgoingLanes {
+            wo_x: [0.0; BATCH_CHUNK],
+            wo_y: [0.0; BATCH_CHUNK],
+            wo_z: [0.0; BATCH_CHUNK],
+            rotation_x: [1.0; BATCH_CHUNK],
+            rotation_y: [0.0; BATCH_CHUNK],
+            dist: [None; BATCH_CHUNK],
+            map: sampler.half_map,
+        };
+        for (l, &wo) in wo.iter().take(BATCH_CHUNK).enumerate() {
+            lanes.wo_x[l] = wo.x;
+            lanes.wo_y[l] = wo.y;
+            lanes.wo_z[l] = wo.z;
+            if !is_valid_outgoing(wo) {
+                continue;
+            }
+            if let Some(slice) = sampler.slice_for(wo) {
+                lanes.rotation_x[l] = slice.rotation.x;
+                lanes.rotation_y[l] = slice.rotation.y;
+                lanes.dist[l] = Some(slice.dist);
+            }
+        }
+        lanes
+    }
+
+    /// Lane l's slice, if it has one.
+    #[inline(always)]
+    fn slice(&self, l: usize) -> Option<Slice<'a, D>> {
+        self.dist[l].map(|dist| Slice {
+            dist,
+            rotation: Vec2::new(self.rotation_x[l], self.rotation_y[l]),
+            map: self.map,
+        })
+    }
+}
+
+impl<D> LaneFrames for OutgoingLanes<'_, D> {
+    #[inline(always)]
+    fn wo(&self, l: usize) -> Vec3 {
+        Vec3::new(self.wo_x[l], self.wo_y[l], self.wo_z[l])
+    }
+
+    #[inline(always)]
+    fn geometry(&self, l: usize) -> SliceGeometry {
+        SliceGeometry {
+            rotation: Vec2::new(self.rotation_x[l], self.rotation_y[l]),
+            map: self.map,
+        }
+    }
+}
+
+impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
+    /// `sample` of every (wo, u) pair without a cosine lobe, a chunk at a
+    /// time: the slices lane by lane, the searches lane by lane (independent,
+    /// so the core overlaps their loads), the geometry and the exact
+    /// densities in SIMD, then each draw's check.
+    pub(super) fn sample_each_table(
+        &self,
+        wo: &[Vec3],
+        u: &[Vec2],
+        out: &mut [Option<BxdfSample>],
+    ) {
+        let mut drawn = [Sample2D::default(); BATCH_CHUNK];
+        let mut draws = DrawLanes::new();
+        let mut wi = [Vec3::ZERO; BATCH_CHUNK];
+        let mut coordinates = CoordinateLanes::new();
+        let mut dists = Vec::with_capacity(BATCH_CHUNK);
+        let chunks = wo
+            .chunks(BATCH_CHUNK)
+            .zip(u.chunks(BATCH_CHUNK))
+            .zip(out.chunks_mut(BATCH_CHUNK));
+        for ((wc, uc), oc) in chunks {
+            let n = wc.len().min(uc.len()).min(oc.len());
+            let lanes = OutgoingLanes::find(self, &wc[..n]);
+            // The draws of the lanes that have a slice, from their slices
+            // together (the builder overlaps them where it can).
+            dists.clear();
+            let mut lane_u = [Vec2::ZERO; BATCH_CHUNK];
+            let mut lane_of = [0usize; BATCH_CHUNK];
+            for l in 0..n {
+                if let Some(dist) = lanes.dist[l] {
+                    lane_u[dists.len()] = uc[l];
+                    lane_of[dists.len()] = l;
+                    dists.push(dist);
+                }
+            }
+            let m = dists.len();
+            let mut compact = [Sample2D::default(); BATCH_CHUNK];
+            self.builder
+                .sample_each(&dists, &lane_u[..m], &mut compact[..m]);
+            for (&l, &s) in lane_of[..m].iter().zip(&compact[..m]) {
+                drawn[l] = s;
+            }
+            draw_lanes(&lanes, &drawn[..n], &mut draws);
+            for (l, w) in wi[..n].iter_mut().enumerate() {
+                *w = Vec3::new(draws.wi_x[l], draws.wi_y[l], draws.wi_z[l]);
+            }
+            coordinate_lanes(&lanes, &wi[..n], &mut coordinates);
+            for (l, o) in oc[..n].iter_mut().enumerate() {
+                *o = lanes.slice(l).and_then(|slice| {
+                    self.finish_draw_with(
+                        &draws.get(l),
+                        || {
+                            self.builder.same_cell_around(
+                                slice.dist,
+                                drawn[l].p,
+                                Vec2::splat(CELL_MARGIN),
+                            )
+                        },
+                        || self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi[l]),
+                    )
+                });
+            }
+        }
+    }
+
+    /// `pdf` of every (wo, wi) pair without a cosine lobe, a chunk at a
+    /// time: the slices lane by lane, the coordinates in SIMD, then each
+    /// table lookup.
+    pub(super) fn pdf_each_table(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        let mut coordinates = CoordinateLanes::new();
+        let chunks = wo
+            .chunks(BATCH_CHUNK)
+            .zip(wi.chunks(BATCH_CHUNK))
+            .zip(out.chunks_mut(BATCH_CHUNK));
+        for ((wc, ic), oc) in chunks {
+            let n = wc.len().min(ic.len()).min(oc.len());
+            let lanes = OutgoingLanes::find(self, &wc[..n]);
+            coordinate_lanes(&lanes, &ic[..n], &mut coordinates);
+            for (l, o) in oc[..n].iter_mut().enumerate() {
+                let wi = ic[l];
+                *o = match lanes.dist[l] {
+                    Some(dist) if wi.is_finite() && wi.z > 0.0 => {
+                        self.mix_with_cosine(coordinates.get(l).table_pdf(dist), wi)
+                    }
+                    Some(_) => 0.0,
+                    // An invalid wo, or a slice that failed to build.
+                    None => self.pdf_one(wc[l], wi),
+                };
+            }
+        }
+    }
+}
