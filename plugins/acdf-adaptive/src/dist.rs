@@ -614,7 +614,49 @@ impl AdaptiveCdf2D {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn sample_batch_avx2(&self, avx2: Avx2, u: &[Vec2], out: &mut [Sample2D]) {
-        self.sample_batch_lanes(avx2, u, out);
+        self.sample_batch_lanes::<_, false>(avx2, u, out, Vec2::ZERO, &mut []);
+    }
+
+    /// `sample_batch`, and for every draw
+    /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
+    /// into `same`, from the segments each draw came from (as
+    /// [`sample_and_same_segment`](Self::sample_and_same_segment) does for
+    /// one draw). Entries beyond the shortest of the three lengths are left
+    /// alone.
+    pub fn sample_batch_and_same_segment(
+        &self,
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        let len = u.len().min(out.len()).min(same.len());
+        let (u, out, same) = (&u[..len], &mut out[..len], &mut same[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = Avx2::detect() {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { self.sample_batch_and_same_avx2(avx2, u, margin, out, same) };
+            return;
+        }
+        self.sample_batch_lanes::<_, true>(Baseline, u, out, margin, same);
+    }
+
+    /// [`sample_batch_and_same_segment`](Self::sample_batch_and_same_segment)
+    /// compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn sample_batch_and_same_avx2(
+        &self,
+        avx2: Avx2,
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        self.sample_batch_lanes::<_, true>(avx2, u, out, margin, same);
     }
 
     /// The same samples as [`sample`](Distribution2D::sample), [`LANES`]
@@ -622,14 +664,28 @@ impl AdaptiveCdf2D {
     /// conditional segments, conditional samples), so that the core sees
     /// that many independent chains of loads at each stage instead of one
     /// long chain per draw.
+    ///
+    /// With `SAME`, also the box test of every draw against `margin` into
+    /// `same` (which must be as long as `out`), from the drawn segments.
     #[inline(always)]
-    fn sample_batch_lanes<C: WindowCompare>(&self, cmp: C, u: &[Vec2], out: &mut [Sample2D]) {
+    fn sample_batch_lanes<C: WindowCompare, const SAME: bool>(
+        &self,
+        cmp: C,
+        u: &[Vec2],
+        out: &mut [Sample2D],
+        margin: Vec2,
+        same: &mut [bool],
+    ) {
         let len = u.len().min(out.len());
         let (u, out) = (&u[..len], &mut out[..len]);
         let marginal = self.marginal_curve();
         let mut u_chunks = u.chunks_exact(LANES);
         let mut out_chunks = out.chunks_exact_mut(LANES);
-        for (uc, oc) in (&mut u_chunks).zip(&mut out_chunks) {
+        // Non-short-circuit `&`: the box test of `sample_and_same_segment`.
+        let inside = |x: f32, m: f32, s: &Segment| {
+            (x - m >= 0.0) & (x + m < 1.0) & (x - m >= s.x0) & (x + m < s.x1)
+        };
+        for (chunk, (uc, oc)) in (&mut u_chunks).zip(&mut out_chunks).enumerate() {
             let (mut ux, mut uy) = ([0.0f32; LANES], [0.0f32; LANES]);
             for ((x, y), u) in ux.iter_mut().zip(&mut uy).zip(uc) {
                 *x = clamp_unit(u.x);
@@ -641,6 +697,7 @@ impl AdaptiveCdf2D {
                 *s = marginal.segment(j);
             }
             let sy = segment_samples(&seg, &uy);
+            let marginal_seg = seg;
             for (s, (&j, &u)) in seg.iter_mut().zip(j.iter().zip(&ux)) {
                 let c = self.conditional(j);
                 *s = if c.is_uniform() {
@@ -656,13 +713,32 @@ impl AdaptiveCdf2D {
                     pdf: sy.1[l] * sx.1[l],
                 };
             }
+            if SAME {
+                for l in 0..LANES {
+                    let m = if marginal.is_uniform() {
+                        Segment::UNIFORM
+                    } else {
+                        marginal_seg[l]
+                    };
+                    same[chunk * LANES + l] =
+                        inside(sy.0[l], margin.y, &m) & inside(sx.0[l], margin.x, &seg[l]);
+                }
+            }
         }
-        for (o, &u) in out_chunks
+        let tail = len / LANES * LANES;
+        for (k, (o, &u)) in out_chunks
             .into_remainder()
             .iter_mut()
             .zip(u_chunks.remainder())
+            .enumerate()
         {
-            *o = self.sample_inline(u);
+            if SAME {
+                let (sample, inside) = self.sample_and_same_segment(u, margin);
+                *o = sample;
+                same[tail + k] = inside;
+            } else {
+                *o = self.sample_inline(u);
+            }
         }
     }
 }
@@ -687,7 +763,7 @@ impl Distribution2D for AdaptiveCdf2D {
             unsafe { self.sample_batch_avx2(avx2, u, out) };
             return;
         }
-        self.sample_batch_lanes(Baseline, u, out);
+        self.sample_batch_lanes::<_, false>(Baseline, u, out, Vec2::ZERO, &mut []);
     }
 
     /// p_marginal(y) p_j(x), 0 outside [0, 1)^2.
@@ -904,6 +980,23 @@ mod fast_sampling_tests {
                     }
                 }
                 assert!(inside > 1000, "{inside}");
+                // The batch form gives the same samples and answers, tail
+                // included.
+                for m in [1e-5f32, 1e-3, 0.05] {
+                    let margin = Vec2::splat(m);
+                    let n = 1003;
+                    let mut batch = vec![Sample2D::default(); n];
+                    let mut same = vec![false; n];
+                    d.sample_batch_and_same_segment(&u[..n], margin, &mut batch, &mut same);
+                    for k in 0..n {
+                        assert_eq!(
+                            (batch[k], same[k]),
+                            d.sample_and_same_segment(u[k], margin),
+                            "{}",
+                            u[k]
+                        );
+                    }
+                }
             }
         }
     }

@@ -78,6 +78,19 @@ impl SliceBuilder for AdaptiveBuilder {
     ) -> (Sample2D, bool) {
         dist.sample_and_same_segment(u, margin)
     }
+
+    /// The batch form of the same
+    /// ([`AdaptiveCdf2D::sample_batch_and_same_segment`]).
+    fn sample_batch_and_same_cell(
+        &self,
+        dist: &AdaptiveCdf2D,
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        dist.sample_batch_and_same_segment(u, margin, out, same);
+    }
 }
 
 /// The adaptive sampler: tabulation, cell lookup, cosine mixing and lazy

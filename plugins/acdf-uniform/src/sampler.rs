@@ -55,6 +55,25 @@ pub trait SliceBuilder: Send + Sync {
         (s, self.same_cell_around(dist, s.p, margin))
     }
 
+    /// `dist.sample_batch(u, out)` and, into `same`,
+    /// [`same_cell_around`](Self::same_cell_around) of every sample (the
+    /// three slices are equally long). The default makes the two passes; a
+    /// builder whose distribution can answer the box test from each draw's
+    /// own search overrides it.
+    fn sample_batch_and_same_cell(
+        &self,
+        dist: &Self::Dist,
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        dist.sample_batch(u, out);
+        for (same, s) in same.iter_mut().zip(out.iter()) {
+            *same = self.same_cell_around(dist, s.p, margin);
+        }
+    }
+
     /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
     /// shading points), exactly as `dists[k].sample(u[k])`. The default
     /// draws one at a time; a builder whose distribution can overlap draws

@@ -205,6 +205,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         let mut table_u = [Vec2::ZERO; BATCH_CHUNK];
         let mut drawn = [Sample2D::default(); BATCH_CHUNK];
         let mut draws = DrawLanes::new();
+        let mut same_cell = [false; BATCH_CHUNK];
         let mut wi = [Vec3::ZERO; BATCH_CHUNK];
         let mut coordinates = CoordinateLanes::new();
         let frame = OneFrame {
@@ -216,7 +217,13 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             for (t, &u) in table_u.iter_mut().zip(&uc[..n]) {
                 *t = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
             }
-            slice.dist.sample_batch(&table_u[..n], &mut drawn[..n]);
+            self.builder.sample_batch_and_same_cell(
+                slice.dist,
+                &table_u[..n],
+                Vec2::splat(CELL_MARGIN),
+                &mut drawn[..n],
+                &mut same_cell[..n],
+            );
             draw_lanes(&frame, &drawn[..n], &mut draws);
             // The exact density of every draw's wi, as `pdf` finds it, for
             // the draws whose cell check fails: cheaper for the whole chunk
@@ -225,13 +232,10 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
                 *w = Vec3::new(draws.wi_x[l], draws.wi_y[l], draws.wi_z[l]);
             }
             coordinate_lanes(&frame, &wi[..n], &mut coordinates);
-            for (l, (o, &s)) in oc[..n].iter_mut().zip(&drawn[..n]).enumerate() {
+            for (l, o) in oc[..n].iter_mut().enumerate() {
                 *o = self.finish_draw_with(
                     &draws.get(l),
-                    || {
-                        self.builder
-                            .same_cell_around(slice.dist, s.p, Vec2::splat(CELL_MARGIN))
-                    },
+                    || same_cell[l],
                     || self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi[l]),
                 );
             }
