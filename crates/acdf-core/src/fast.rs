@@ -3,7 +3,7 @@
 //! A sampler maps a half vector to table coordinates (two arctangents) and
 //! back (a sine and cosine per axis) on every draw and every density; the
 //! libm functions cost more than the table search itself. These versions are
-//! branch-light polynomials, accurate to a few 1e-7 rad, with no libm call,
+//! branch-free polynomials, accurate to a few 1e-7 rad, with no libm call,
 //! and they are the same in `sample` and `pdf`, so the two stay consistent.
 
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
@@ -42,9 +42,10 @@ fn atan_unit(a: f32) -> f32 {
 }
 
 /// atan2(y, x) in [-π, π] without a libm call, to within 4e-7 rad; 0 for
-/// (0, 0) and for NaN. The sampler's inverse map uses it in `sample` and
-/// `pdf` alike, so the two stay consistent exactly; its error only moves
-/// cell boundaries by a fraction of an ulp of the angle.
+/// (0, 0), and a finite angle for NaN input (0 when x is not negative). The
+/// sampler's inverse map uses it in `sample` and `pdf` alike, so the two
+/// stay consistent exactly; its error only moves cell boundaries by a
+/// fraction of an ulp of the angle.
 #[inline(always)]
 pub fn fast_atan2(y: f32, x: f32) -> f32 {
     let (ax, ay) = (x.abs(), y.abs());

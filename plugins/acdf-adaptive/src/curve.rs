@@ -361,7 +361,7 @@ pub(crate) fn prefix_sums(values: impl Iterator<Item = f64>) -> Running {
     Running { sum, positive }
 }
 
-/// The points (k / n, prefix[k] / total) of the normalised tabulated CDF, or
+/// The points `(k / n, prefix[k] / total)` of the normalised tabulated CDF, or
 /// `None` when the total is zero.
 pub(crate) fn cdf_points(prefix: &Running) -> Option<(Vec<f64>, Vec<f64>)> {
     let prefix = &prefix.sum;

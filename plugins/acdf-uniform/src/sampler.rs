@@ -158,8 +158,8 @@ pub type UniformBrdfSampler = TabulatedBrdfSampler<PiecewiseConstantBuilder>;
 ///   non-finite (below the horizon, or a half vector whose recomputed cell
 ///   has zero density) is `None`.
 /// - **Speed.** The half-vector maps use polynomial sine, cosine and
-///   arctangent ([`fast_atan2`](acdf_core::fast::fast_atan2),
-///   [`sin_cos_turns`](acdf_core::fast::sin_cos_turns), within a few 1e-7
+///   arctangent ([`fast_atan2`],
+///   [`sin_cos_turns`], within a few 1e-7
 ///   rad), the same in `sample` and `pdf`, and the θ_o cell is counted
 ///   from cos θ_o without an arctangent. One call is a chain of dependent
 ///   steps (cell, two searches, trigonometry, reflection); where the CPU

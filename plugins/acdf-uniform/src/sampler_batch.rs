@@ -1,16 +1,19 @@
-//! The batch paths of [`TabulatedBrdfSampler`]: a chunk of draws (or of
-//! densities) for one outgoing direction at a time.
+//! The batch paths of [`TabulatedBrdfSampler`]: chunks of draws (or of
+//! densities), for one outgoing direction (`sample_batch`, `pdf_batch`) or
+//! one per pair (`sample_each`, `pdf_each`, a wavefront of shading points).
 //!
 //! A draw is a table search, then about a hundred operations of geometry
 //! (two sine/cosine pairs, a reflection, a Jacobian), then a check of the
-//! drawn cell. The searches go through the distribution's own
-//! `sample_batch`; the geometry of the whole chunk runs as one loop over
-//! lanes ([`Slice::draw`] and [`Slice::coordinates_of`] have no branches),
-//! which the compiler turns into SIMD, 8 lanes wide where the CPU has AVX2
-//! (selected at run time); the per-draw checks and any exact recomputation
-//! follow lane by lane. Each lane runs the same IEEE operations in the same
-//! order as the one-at-a-time path (no fused multiply-adds are formed), so
-//! the batch results are bit-identical to `sample` and `pdf`.
+//! drawn cell. The searches of a chunk go through the builder
+//! (`SliceBuilder::sample_batch_and_same_cell`, or the slices' own
+//! `sample_each` stages for a wavefront); the geometry of the whole chunk
+//! runs as one loop over lanes ([`Slice::draw`] and
+//! [`Slice::coordinates_of`] have no branches), which the compiler turns
+//! into SIMD, 8 lanes wide where the CPU has AVX2 (selected at run time);
+//! the per-draw checks and any exact recomputation follow lane by lane.
+//! Each lane runs the same IEEE operations in the same order as the
+//! one-at-a-time path (no fused multiply-adds are formed), so the batch
+//! results are bit-identical to `sample` and `pdf`.
 
 // The lane loops index several arrays of one chunk by the same lane
 // number; that is the layout the vectoriser wants, not an iterator chain.
@@ -193,8 +196,9 @@ fn coordinate_lanes<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut Coordinate
 
 impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// Table draws for every u (no cosine lobe), a chunk at a time: the
-    /// searches by the distribution's `sample_batch`, the geometry by
-    /// [`Slice::draw_lanes`], then each draw's check.
+    /// searches and cell tests by the builder's
+    /// `sample_batch_and_same_cell`, the geometry by [`draw_lanes`], then
+    /// each draw's check.
     pub(super) fn sample_table_batch(
         &self,
         slice: &Slice<'_, B::Dist>,
@@ -243,7 +247,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     }
 
     /// The mixed density at every wi, a chunk at a time: the coordinates
-    /// by [`Slice::coordinate_lanes`], then each table lookup.
+    /// by [`coordinate_lanes`], then each table lookup.
     pub(super) fn pdf_table_batch(
         &self,
         slice: &Slice<'_, B::Dist>,

@@ -1,7 +1,7 @@
 //! Bilinear densities over the unit square, sampled and inverted exactly, and
 //! stacks of them blended linearly over parameters.
 //!
-//! A grid of nx × ny values v[j][i] sits at (x, y) = (i/(nx−1), j/(ny−1)) and
+//! A grid of nx × ny values `v[j][i]` sits at (x, y) = (i/(nx−1), j/(ny−1)) and
 //! is interpolated bilinearly. Within a cell the density is linear in x for a
 //! fixed y, and the marginal m(y) = ∫ f(x, y) dx is linear in y, so both
 //! cumulative distributions are quadratics per cell: sampling solves one
