@@ -3,7 +3,9 @@
 //! `Distribution2D`), for BRDF samplers (`BxdfSampler`) and BRDF sources
 //! (`Brdf`); the geometry of the local shading frame, spherical and
 //! Rusinkiewicz half/difference coordinates; the warps shared by several
-//! samplers; and the one error type. It holds no sampler and no data format,
+//! samplers; the hot-path helpers every sampler uses (polynomial
+//! trigonometry in `fast`, branch-free sorted-list searches in `search`);
+//! and the one error type. It holds no sampler and no data format,
 //! so that plug-ins and material readers depend only on this small crate and
 //! never on each other.
 //!
@@ -22,6 +24,7 @@ pub mod error;
 pub mod fast;
 pub mod geometry;
 pub mod sampler;
+pub mod search;
 pub mod warp;
 
 pub use brdf::{luminance, Brdf, Rgb, LUMINANCE_WEIGHTS};

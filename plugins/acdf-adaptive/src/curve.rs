@@ -15,7 +15,7 @@
 //! the one function `density_of`, so the pdf returned with a sample is
 //! bit-for-bit the pdf evaluated at that sample.
 
-use crate::search::{count_at_or_below, count_short_or_search, Baseline, WindowCompare};
+use acdf_core::search::{count_at_or_below, count_short_or_search, Baseline, WindowCompare};
 use acdf_core::{clamp_unit, Sample1D, ONE_MINUS_EPSILON};
 
 /// The largest f32 strictly below `v` (for v > 0 finite).

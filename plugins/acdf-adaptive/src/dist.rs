@@ -3,10 +3,10 @@
 use crate::curve::{
     cdf_points, prefix_sums, push_vertices, segment_samples, Curve, Running, Segment,
 };
-#[cfg(target_arch = "x86_64")]
-use crate::search::Avx2;
-use crate::search::{Baseline, WindowCompare};
 use crate::simplify::{validate_tolerance, ErrorBound, Simplifier};
+#[cfg(target_arch = "x86_64")]
+use acdf_core::search::Avx2;
+use acdf_core::search::{Baseline, WindowCompare};
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
     Vec2,

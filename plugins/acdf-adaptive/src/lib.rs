@@ -58,7 +58,6 @@ mod curve;
 pub mod dist;
 pub mod persist;
 pub mod sampler;
-mod search;
 pub mod simplify;
 
 pub use dist::{AdaptiveCdf1D, AdaptiveCdf2D};

@@ -32,6 +32,7 @@
 //! is 0 unless the whole table is zero, so it is never drawn.
 
 use crate::persist::{ByteReader, ByteWriter, Persist, PersistError};
+use acdf_core::search;
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
     Vec2, ONE_MINUS_EPSILON,
@@ -42,58 +43,10 @@ use acdf_core::{
 pub const MAX_CELLS: usize = 1 << 24;
 
 /// The number of entries of `cdf` that are `<= u`, for a non-decreasing
-/// `cdf`; see [`count_at_or_below_lanes`].
+/// `cdf`, by the shared branch-free search ([`acdf_core::search`]).
 #[inline(always)]
 pub(crate) fn count_at_or_below(cdf: &[f32], u: f32) -> usize {
-    count_at_or_below_lanes(cdf, [0], cdf.len(), [u])[0]
-}
-
-/// For each lane l, the number of entries of the non-decreasing window
-/// `data[offsets[l]..offsets[l] + len]` that are `<= u[l]`.
-///
-/// A 4-ary search without data-dependent branches: with the answer's last
-/// candidate `base` in [base, base + size), three pivots q, 2q, 3q ahead
-/// (q = size / 4) are compared, `base` moves by q times the number of
-/// pivots at or below u, and `size` shrinks by 3q, which keeps every
-/// candidate whatever the count. The loop depends only on `len`, so the
-/// lanes run in lockstep and their loads overlap instead of forming one
-/// chain of dependent loads per draw. The comparisons are summed as
-/// integers: a binary search's `if` (or `half * bool`) is compiled to a
-/// branch that mispredicts on half of the steps.
-#[inline(always)]
-fn count_at_or_below_lanes<const L: usize>(
-    data: &[f32],
-    offsets: [usize; L],
-    len: usize,
-    u: [f32; L],
-) -> [usize; L] {
-    if len == 0 {
-        return [0; L];
-    }
-    let at_or_below = |i: usize, u: f32| (data[i] <= u) as usize;
-    let mut base = offsets;
-    let mut size = len;
-    while size >= 4 {
-        let q = size / 4;
-        for (b, &u) in base.iter_mut().zip(&u) {
-            let count =
-                at_or_below(*b + q, u) + at_or_below(*b + 2 * q, u) + at_or_below(*b + 3 * q, u);
-            *b += q * count;
-        }
-        size -= 3 * q;
-    }
-    // size is now 1, 2 or 3: step over the remaining candidates one by one.
-    for ((b, &u), &offset) in base.iter_mut().zip(&u).zip(&offsets) {
-        let mut count = at_or_below(*b, u);
-        if size >= 2 {
-            count += at_or_below(*b + 1, u);
-        }
-        if size >= 3 {
-            count += at_or_below(*b + 2, u);
-        }
-        *b = *b - offset + count;
-    }
-    base
+    search::count_short_or_search(search::Baseline, cdf, 0, cdf.len(), u)
 }
 
 /// The cutpoint index (guide table) of a stored CDF: for G = n equal
@@ -1134,8 +1087,8 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
 
-        /// The branch-free 4-ary search counts exactly what a binary search
-        /// does, for every length (the lockstep lanes included).
+        /// The branch-free search counts exactly what a binary search does,
+        /// for every length.
         #[test]
         fn search_matches_partition_point(
             mut v in prop::collection::vec(prop_oneof![Just(0.5f32), 0.0f32..1.0], 0..300),
@@ -1143,11 +1096,9 @@ mod tests {
         ) {
             v.sort_by(f32::total_cmp);
             let lanes: [f32; 8] = std::array::from_fn(|l| if l == 3 { 0.5 } else { u[l] });
-            let counts = count_at_or_below_lanes(&v, [0; 8], v.len(), lanes);
-            for (l, &u) in lanes.iter().enumerate() {
+            for &u in &lanes {
                 let expected = v.partition_point(|&c| c <= u);
                 prop_assert_eq!(count_at_or_below(&v, u), expected);
-                prop_assert_eq!(counts[l], expected);
             }
         }
 

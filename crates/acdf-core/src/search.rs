@@ -1,22 +1,22 @@
-//! Branch-free segment searches over the sorted vertex lists of a curve.
+//! Branch-free searches in sorted lists: the inverse CDF lookups of the
+//! distributions, shared by the plug-ins.
 //!
 //! Every search here returns the number of entries `<= v` of a
 //! non-decreasing list, which is exactly what `partition_point(|&e| e <= v)`
-//! returns, so the segment a sample or a density lookup lands in does not
-//! depend on which search found it. What differs is the cost: a binary
-//! search over ~100 vertices takes seven branches that follow the random
-//! `v` and mispredict about half the time (some 15 cycles each), whereas
-//! these searches compare without data-dependent branches: a list of up to
-//! [`WINDOW`] entries (every conditional over 32 φ_h columns) is compared
+//! returns, so the cell or segment a sample or a density lookup lands in
+//! does not depend on which search found it. What differs is the cost: a
+//! binary search over ~100 entries takes seven branches that follow the
+//! random `v` and mispredict about half the time (some 15 cycles each),
+//! whereas these searches compare without data-dependent branches: a list of
+//! up to [`WINDOW`] entries (a conditional over 32 φ_h columns) is compared
 //! all at once, a longer one (a marginal over 256 θ_h rows) is first cut
 //! down to such a window by a four-way search.
 //!
-//! Nothing here is stored: the searches read the persisted vertex lists as
-//! they are, so `storage_bytes` has nothing to add for them.
+//! Nothing here is stored: the searches read the lists as they are.
 
 /// The number of entries compared at once; a conditional over 32 φ_h
 /// columns has at most 33 vertices, whose inner 31 fit.
-pub(crate) const WINDOW: usize = 32;
+pub const WINDOW: usize = 32;
 
 /// For each lane l, the number of entries of the non-decreasing list
 /// `data[start..start + len]` that are `<= v[l]` (all lanes share the list).
@@ -31,7 +31,7 @@ pub(crate) const WINDOW: usize = 32;
 /// depends on `len` only. The lanes thus step together, and their
 /// independent loads overlap.
 #[inline(always)]
-pub(crate) fn count_at_or_below<C: WindowCompare, const L: usize>(
+pub fn count_at_or_below<C: WindowCompare, const L: usize>(
     cmp: C,
     data: &[f32],
     start: usize,
@@ -92,7 +92,7 @@ fn count_few(data: &[f32], start: usize, n: usize, v: f32) -> usize {
 /// when it would run past it. No loop whose trip count changes from draw to
 /// draw, no data-dependent branch.
 #[inline(always)]
-pub(crate) fn count_window<C: WindowCompare>(
+pub fn count_window<C: WindowCompare>(
     cmp: C,
     data: &[f32],
     start: usize,
@@ -149,7 +149,7 @@ fn at_or_below_mask(window: &[f32; WINDOW], v: f32) -> u32 {
 /// that are `<= v`: [`count_window`] for a short list, else
 /// [`count_at_or_below`].
 #[inline(always)]
-pub(crate) fn count_short_or_search<C: WindowCompare>(
+pub fn count_short_or_search<C: WindowCompare>(
     cmp: C,
     data: &[f32],
     start: usize,
@@ -166,13 +166,13 @@ pub(crate) fn count_short_or_search<C: WindowCompare>(
 /// How a window of [`WINDOW`] entries is compared with a value: bit k of
 /// the mask is set where `window[k] <= v`. One implementation per
 /// instruction set, all giving the same mask.
-pub(crate) trait WindowCompare: Copy {
+pub trait WindowCompare: Copy {
     fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32;
 }
 
 /// Compares with the instructions every target of the build has.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Baseline;
+pub struct Baseline;
 
 impl WindowCompare for Baseline {
     #[inline(always)]
@@ -186,7 +186,7 @@ impl WindowCompare for Baseline {
 /// is what makes its use sound.
 #[cfg(target_arch = "x86_64")]
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Avx2(());
+pub struct Avx2(());
 
 #[cfg(target_arch = "x86_64")]
 impl Avx2 {
