@@ -642,6 +642,52 @@ fn check_sample_2d<D: Distribution2D>(
 }
 
 /// Chi-square and consistency for one 2D distribution built from `table`.
+/// `pdf_batch` against `pdf`, exactly, at the drawn points, the same points
+/// nudged by an ulp either way (onto and across cell edges), and points
+/// outside the square or not numbers.
+fn check_pdf_batch_2d<D: Distribution2D>(
+    report: &mut Report,
+    case: &str,
+    d: &D,
+    samples: &[acdf_core::Sample2D],
+) {
+    let mut points: Vec<Vec2> = Vec::new();
+    for s in samples.iter().take(1024) {
+        let p = s.p;
+        points.extend([
+            p,
+            Vec2::new(p.x.next_up(), p.y),
+            Vec2::new(p.x, p.y.next_down()),
+        ]);
+    }
+    points.extend([
+        Vec2::new(-0.0, 0.5),
+        Vec2::new(0.5, 1.0),
+        Vec2::new(1.0, 0.5),
+        Vec2::new(f32::NAN, 0.5),
+        Vec2::new(0.5, f32::INFINITY),
+        Vec2::new(-1e-30, 0.25),
+        Vec2::ZERO,
+        Vec2::splat(1.0f32.next_down()),
+    ]);
+    let mut batch = vec![f32::NAN; points.len() + 1];
+    d.pdf_batch(&points, &mut batch);
+    for (k, &p) in points.iter().enumerate() {
+        let single = d.pdf(p);
+        if batch[k].to_bits() != single.to_bits() {
+            report.fail(
+                Check::Batch,
+                case,
+                format!("pdf_batch gave {} at {p}, pdf gave {single}", batch[k]),
+            );
+            return;
+        }
+    }
+    if !batch[points.len()].is_nan() {
+        report.fail(Check::Batch, case, "pdf_batch wrote past its points");
+    }
+}
+
 fn check_2d<D: Distribution2D>(
     subject: &str,
     d: &D,
@@ -678,9 +724,12 @@ fn check_2d<D: Distribution2D>(
             *u = Vec2::new(rng.random(), rng.random());
         }
         d.sample_batch(&us[..c], &mut out[..c]);
+        if drawn == 0 {
+            check_pdf_batch_2d(&mut report, &case, d, &out[..c]);
+        }
         for k in 0..c {
             let s = out[k];
-            let single = (drawn == 0 && k < 64).then(|| d.sample(us[k]));
+            let single = (drawn == 0 && k < 256).then(|| d.sample(us[k]));
             let differs = |t: &acdf_core::Sample2D| {
                 !(close(t.p.x, s.p.x) && close(t.p.y, s.p.y) && close(t.pdf, s.pdf))
             };

@@ -499,3 +499,53 @@ fn rejects_sample_each_with_one_wo_for_all_pairs() {
     );
     assert_rejected(&report, Check::Batch);
 }
+
+// ------------------------------------------ a batch density off by a row
+
+/// The 2D reference whose `pdf_batch` reads each point's density one row
+/// of cells higher (the last row stays): a batch path that computed the
+/// row index once too often. `sample` and `pdf` are correct, so only the
+/// batch check can see it.
+struct RowAbovePdfBatch(PiecewiseConstant2D, usize);
+
+impl RowAbovePdfBatch {
+    fn new(t: &[f32], nx: usize, ny: usize) -> Result<Self> {
+        Ok(RowAbovePdfBatch(PiecewiseConstant2D::new(t, nx, ny)?, ny))
+    }
+}
+
+impl Distribution2D for RowAbovePdfBatch {
+    fn sample(&self, u: Vec2) -> Sample2D {
+        self.0.sample(u)
+    }
+    fn pdf(&self, p: Vec2) -> f32 {
+        self.0.pdf(p)
+    }
+    fn invert(&self, p: Vec2) -> Vec2 {
+        self.0.invert(p)
+    }
+    fn integral(&self) -> f64 {
+        self.0.integral()
+    }
+    fn storage_bytes(&self) -> usize {
+        0
+    }
+    fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
+        let step = 1.0 / self.1 as f32;
+        for (o, &p) in out.iter_mut().zip(p) {
+            let above = p.y + step;
+            let y = if above < 1.0 { above } else { p.y };
+            *o = self.0.pdf(Vec2::new(p.x, y));
+        }
+    }
+}
+
+#[test]
+fn rejects_pdf_batch_reading_the_row_above() {
+    let report = check_distribution_2d(
+        "mutant_pdf_batch_row_above",
+        RowAbovePdfBatch::new,
+        &distribution_config(),
+    );
+    assert_rejected(&report, Check::Batch);
+}

@@ -72,7 +72,11 @@ pub struct Sample1D {
 }
 
 /// A sample from a [`Distribution2D`]: the point and its density there.
+///
+/// `repr(C)`: three consecutive `f32` (x, y, pdf), so that batch paths can
+/// write samples with vector stores.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
 pub struct Sample2D {
     pub p: Vec2,
     pub pdf: f32,
@@ -135,6 +139,15 @@ pub trait Distribution2D: Send + Sync {
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         for (o, &u) in out.iter_mut().zip(u) {
             *o = self.sample(u);
+        }
+    }
+
+    /// The density at many points at once: `out[k] = pdf(p[k])` for every
+    /// `k` below the shorter of the two lengths, bit for bit. Fast
+    /// implementations override this.
+    fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
+        for (o, &p) in out.iter_mut().zip(p) {
+            *o = self.pdf(p);
         }
     }
 }

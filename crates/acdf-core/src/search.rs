@@ -13,6 +13,12 @@
 //! down to such a window by a four-way search.
 //!
 //! Nothing here is stored: the searches read the lists as they are.
+//!
+//! [`lanes`] (x86-64) searches for many draws at once in AVX2 lanes, for the
+//! batch paths.
+
+#[cfg(target_arch = "x86_64")]
+pub mod lanes;
 
 /// The number of entries compared at once; a conditional over 32 φ_h
 /// columns has at most 33 vertices, whose inner 31 fit.

@@ -12,6 +12,9 @@ use acdf_core::{
     Vec2,
 };
 
+#[cfg(target_arch = "x86_64")]
+mod gather;
+
 /// Tables longer than this cannot give distinct f32 vertex positions k / n.
 const MAX_TABLE_LEN: usize = 1 << 24;
 
@@ -262,9 +265,10 @@ impl AdaptiveCdf1D {
 /// 0, so its conditional is stored empty.
 ///
 /// Sampling and density lookups search these lists as they are, without
-/// branches that follow the random numbers (a four-way search down to a
-/// 32-entry window compared at once, see `search.rs`), so no index is
-/// derived from them and the storage is exactly the above.
+/// branches that follow the random numbers (one at a time, a four-way search
+/// down to a 32-entry window compared at once, see `acdf_core::search`; in
+/// batches on AVX2, binary lifting in SIMD lanes, see `dist/gather.rs`), so
+/// no index is derived from them and the storage is exactly the above.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AdaptiveCdf2D {
     /// The marginal's m vertex positions, then its m CDF values.
@@ -605,18 +609,6 @@ impl AdaptiveCdf2D {
         (sample, same)
     }
 
-    /// [`sample_batch_lanes`](Self::sample_batch_lanes) compiled for AVX2
-    /// (the window counts become 8-wide compares); the same IEEE operations
-    /// in the same order, so the same samples.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn sample_batch_avx2(&self, avx2: Avx2, u: &[Vec2], out: &mut [Sample2D]) {
-        self.sample_batch_lanes::<_, false>(avx2, u, out, Vec2::ZERO, &mut []);
-    }
-
     /// `sample_batch`, and for every draw
     /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
     /// into `same`, from the segments each draw came from (as
@@ -633,30 +625,13 @@ impl AdaptiveCdf2D {
         let len = u.len().min(out.len()).min(same.len());
         let (u, out, same) = (&u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = Avx2::detect() {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { self.sample_batch_and_same_avx2(avx2, u, margin, out, same) };
+        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
+            // SAFETY: the CPU has just been found to support AVX2, and the
+            // distribution fits the lanes.
+            unsafe { self.sample_batch_gather::<true>(u, out, margin, same) };
             return;
         }
         self.sample_batch_lanes::<_, true>(Baseline, u, out, margin, same);
-    }
-
-    /// [`sample_batch_and_same_segment`](Self::sample_batch_and_same_segment)
-    /// compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn sample_batch_and_same_avx2(
-        &self,
-        avx2: Avx2,
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        self.sample_batch_lanes::<_, true>(avx2, u, out, margin, same);
     }
 
     /// The same samples as [`sample`](Distribution2D::sample), [`LANES`]
@@ -754,16 +729,34 @@ impl Distribution2D for AdaptiveCdf2D {
         self.sample_inline(u)
     }
 
-    /// The same samples as [`sample`](Distribution2D::sample), eight draws
-    /// at a time (compiled for AVX2 where the CPU has it).
+    /// The same samples as [`sample`](Distribution2D::sample): where the CPU
+    /// has AVX2, 64 draws at a time in SIMD lanes (`dist/gather.rs`),
+    /// elsewhere eight at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = Avx2::detect() {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { self.sample_batch_avx2(avx2, u, out) };
+        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
+            // SAFETY: the CPU has just been found to support AVX2, and the
+            // distribution fits the lanes.
+            unsafe { self.sample_batch_gather::<false>(u, out, Vec2::ZERO, &mut []) };
             return;
         }
         self.sample_batch_lanes::<_, false>(Baseline, u, out, Vec2::ZERO, &mut []);
+    }
+
+    /// The same densities as [`pdf`](Distribution2D::pdf), bit for bit:
+    /// where the CPU has AVX2, 64 points at a time in SIMD lanes
+    /// (`dist/gather.rs`), elsewhere one at a time.
+    fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
+            // SAFETY: the CPU has just been found to support AVX2, and the
+            // distribution fits the lanes.
+            unsafe { self.pdf_batch_gather(p, out) };
+            return;
+        }
+        for (o, &p) in out.iter_mut().zip(p) {
+            *o = self.pdf(p);
+        }
     }
 
     /// p_marginal(y) p_j(x), 0 outside [0, 1)^2.
@@ -934,6 +927,10 @@ mod fast_sampling_tests {
                 }
                 let mut out = vec![Sample2D::default(); u.len()];
                 d.sample_batch(&u, &mut out);
+                // The staged scalar path, which CPUs without AVX2 take.
+                let mut staged = vec![Sample2D::default(); u.len()];
+                d.sample_batch_lanes::<_, false>(Baseline, &u, &mut staged, Vec2::ZERO, &mut []);
+                assert_eq!(staged, out);
                 // The densities at random points, at the samples and at the
                 // vertex positions are the plain search's.
                 let mut points: Vec<Vec2> = u[..500].to_vec();
@@ -956,6 +953,13 @@ mod fast_sampling_tests {
                         py * plain_pdf(d.conditional(j), p.x)
                     };
                     assert_eq!(d.pdf(p), expected, "{p}");
+                }
+                points.extend([f32::NAN, -0.0, -1e-30, 1.0, 2.0].map(|v| Vec2::new(v, 0.5)));
+                points.extend([f32::NAN, -0.0, 1.0].map(|v| Vec2::new(0.5, v)));
+                let mut batch = vec![0.0f32; points.len()];
+                d.pdf_batch(&points, &mut batch);
+                for (&b, &p) in batch.iter().zip(&points) {
+                    assert_eq!(b.to_bits(), d.pdf(p).to_bits(), "pdf_batch at {p}");
                 }
                 // Where the box is said to lie in one segment, the density at
                 // its corners is the density at its centre; most boxes
@@ -988,6 +992,15 @@ mod fast_sampling_tests {
                     let mut batch = vec![Sample2D::default(); n];
                     let mut same = vec![false; n];
                     d.sample_batch_and_same_segment(&u[..n], margin, &mut batch, &mut same);
+                    let mut staged = (vec![Sample2D::default(); n], vec![false; n]);
+                    d.sample_batch_lanes::<_, true>(
+                        Baseline,
+                        &u[..n],
+                        &mut staged.0,
+                        margin,
+                        &mut staged.1,
+                    );
+                    assert_eq!(staged, (batch.clone(), same.clone()));
                     for k in 0..n {
                         assert_eq!(
                             (batch[k], same[k]),
@@ -1023,6 +1036,12 @@ mod fast_sampling_tests {
             if u.y < 0.25 {
                 assert_eq!((s.p.x, s.pdf), (u.x, 0.5), "{u}");
             }
+        }
+        let points: Vec<Vec2> = out.iter().map(|s| s.p).collect();
+        let mut densities = vec![0.0f32; points.len()];
+        d.pdf_batch(&points, &mut densities);
+        for (s, &p) in out.iter().zip(&densities) {
+            assert_eq!(p, s.pdf);
         }
     }
 

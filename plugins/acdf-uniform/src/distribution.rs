@@ -22,9 +22,11 @@
 //! it can land in), so the expected search is a single 8-wide SIMD compare;
 //! a 2D conditional of up to 64 cells is counted by comparing every entry.
 //! Both give exactly the cell of a binary search, so the mapping from u to
-//! x stays monotone. `sample_batch` runs sixteen draws in stages and, where
-//! the CPU has AVX2, is compiled for it; it returns the same samples as
-//! `sample`.
+//! x stays monotone. Where the CPU has AVX2, `sample_batch` and `pdf_batch`
+//! run in SIMD lanes instead (`distribution/gather.rs`: 64 draws per stage,
+//! both searches by binary lifting with gathers); elsewhere `sample_batch`
+//! runs sixteen draws in scalar stages. Both return exactly what `sample`
+//! and `pdf` return.
 //!
 //! **All-zero input.** A table (or a row of a 2D table) that sums to zero
 //! falls back to the uniform density; `integral()` then reports 0. In a 2D
@@ -32,6 +34,8 @@
 //! is 0 unless the whole table is zero, so it is never drawn.
 
 use crate::persist::{ByteReader, ByteWriter, Persist, PersistError};
+#[cfg(target_arch = "x86_64")]
+mod gather;
 use acdf_core::search;
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
@@ -604,6 +608,22 @@ impl Distribution2D for PiecewiseConstant2D {
         self.finish(j, k, u)
     }
 
+    /// The same densities as [`pdf`](Distribution2D::pdf), bit for bit:
+    /// where the CPU has AVX2, eight points at a time in SIMD lanes
+    /// (`distribution/gather.rs`), elsewhere one at a time.
+    fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && self.fits_pdf_lanes() {
+            // SAFETY: the CPU has just been found to support AVX2, and the
+            // table fits the lanes.
+            unsafe { self.pdf_batch_gather(p, out) };
+            return;
+        }
+        for (o, &p) in out.iter_mut().zip(p) {
+            *o = self.pdf(p);
+        }
+    }
+
     /// p(x, y) of the cell (floor(x nx), floor(y ny)); 0 outside [0, 1)^2.
     #[inline]
     fn pdf(&self, p: Vec2) -> f32 {
@@ -635,13 +655,15 @@ impl Distribution2D for PiecewiseConstant2D {
             + self.marginal_guide.bytes()
     }
 
-    /// The same samples as [`sample`](Distribution2D::sample), compiled for
-    /// AVX2 where the CPU has it (see `sample_batch_lanes`).
+    /// The same samples as [`sample`](Distribution2D::sample): where the CPU
+    /// has AVX2, 64 draws at a time in SIMD lanes (`distribution/gather.rs`),
+    /// elsewhere sixteen at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { self.sample_batch_avx2(u, out) };
+        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
+            // SAFETY: the CPU has just been found to support AVX2, and the
+            // table fits the lanes.
+            unsafe { self.sample_batch_gather(u, out) };
             return;
         }
         self.sample_batch_lanes(u, out);
@@ -649,19 +671,6 @@ impl Distribution2D for PiecewiseConstant2D {
 }
 
 impl PiecewiseConstant2D {
-    /// [`sample_batch_lanes`](Self::sample_batch_lanes) compiled for AVX2:
-    /// the conditional count becomes 8-wide compares, and `floor` an
-    /// instruction. Without fast-math the arithmetic is the same IEEE
-    /// operations in the same order, so the samples are bit-identical.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn sample_batch_avx2(&self, u: &[Vec2], out: &mut [Sample2D]) {
-        self.sample_batch_lanes(u, out);
-    }
-
     /// The same samples as [`sample`](Distribution2D::sample), sixteen draws
     /// at a time in stages (rows, then columns, then positions), so that
     /// the out-of-order core sees sixteen independent chains of loads at each
@@ -772,8 +781,10 @@ impl PiecewiseConstant2D {
         Self::sample_each_lanes(dists, u, out);
     }
 
-    /// [`sample_each`](Self::sample_each) compiled for AVX2 (see
-    /// `sample_batch_avx2`).
+    /// [`sample_each`](Self::sample_each) compiled for AVX2: the column
+    /// counts become 8-wide compares and `floor` an instruction; without
+    /// fast-math the arithmetic is the same IEEE operations in the same
+    /// order, so the samples are bit-identical.
     ///
     /// # Safety
     /// The CPU must support AVX2.
@@ -1122,10 +1133,12 @@ mod tests {
             }
         }
 
-        /// `sample_batch` returns exactly what `sample` does, in chunks of
-        /// `LANES` and in the remainder.
+        /// `sample_batch` returns exactly what `sample` does, in full stages
+        /// and in the remainder, for u anywhere (CDF entries, 0, 1, NaN and
+        /// out of range included) and tables of every shape: rows shorter
+        /// than eight, not a power of two, and longer than `LINEAR_ROW`.
         #[test]
-        fn batches_equal_single_samples(values in table(80), nx in 1usize..9, n in 0usize..30, seed in 0u64..1000) {
+        fn batches_equal_single_samples(values in table(600), nx in 1usize..70, n in 0usize..200, seed in 0u64..1000) {
             let ny = values.len().div_ceil(nx);
             let mut v = values.clone();
             v.resize(nx * ny, 0.0);
@@ -1136,17 +1149,44 @@ mod tests {
                 state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
                 (state >> 40) as f32 / (1u64 << 24) as f32
             };
-            let u2: Vec<Vec2> = (0..n).map(|_| Vec2::new(next(), next())).collect();
+            let specials = [0.0, -0.0, 1.0, -1.0, 2.0, f32::NAN, ONE_MINUS_EPSILON, f32::MIN_POSITIVE];
+            let mut coordinate = |cdf: &[f32]| {
+                let pick = next();
+                if pick < 0.2 {
+                    cdf[(next() * cdf.len() as f32) as usize]
+                } else if pick < 0.25 {
+                    specials[(next() * specials.len() as f32) as usize]
+                } else {
+                    next()
+                }
+            };
+            let u2: Vec<Vec2> = (0..n)
+                .map(|_| Vec2::new(coordinate(d2.cdf()), coordinate(d2.marginal())))
+                .collect();
             let u1: Vec<f32> = u2.iter().map(|u| u.x).collect();
             let mut out2 = vec![Sample2D::default(); n + 3];
             let mut out1 = vec![Sample1D::default(); n];
             d2.sample_batch(&u2, &mut out2);
+            // The staged scalar path, which CPUs without AVX2 take.
+            let mut staged = vec![Sample2D::default(); n];
+            d2.sample_batch_lanes(&u2, &mut staged);
+            prop_assert_eq!(&staged[..], &out2[..n]);
             d1.sample_batch(&u1, &mut out1);
             for k in 0..n {
                 prop_assert_eq!(out2[k], d2.sample(u2[k]));
                 prop_assert_eq!(out1[k], d1.sample(u1[k]));
             }
             prop_assert!(out2[n..].iter().all(|s| *s == Sample2D::default()));
+            // pdf_batch at the samples, beside them, and at the raw u
+            // (outside the square and NaN included).
+            let mut points: Vec<Vec2> = out2[..n].iter().map(|s| s.p).collect();
+            points.extend(out2[..n].iter().map(|s| Vec2::new(s.p.x.next_up(), s.p.y.next_down())));
+            points.extend(&u2);
+            let mut densities = vec![0.0f32; points.len()];
+            d2.pdf_batch(&points, &mut densities);
+            for (&b, &p) in densities.iter().zip(&points) {
+                prop_assert_eq!(b.to_bits(), d2.pdf(p).to_bits(), "pdf_batch at {}", p);
+            }
         }
     }
 

@@ -746,10 +746,26 @@ impl TableCoordinates {
     /// p_xv(p) / denominator, 0 where undefined or not finite.
     #[inline(always)]
     fn table_pdf(&self, dist: &impl Distribution2D) -> f32 {
-        if !(self.defined && self.denominator > 0.0) {
+        if !self.has_density() {
             return 0.0;
         }
-        let p = dist.pdf(self.p) / self.denominator;
+        self.table_pdf_from(dist.pdf(self.p))
+    }
+
+    /// Whether the point has a density over wi at all (defined, and a
+    /// positive denominator).
+    #[inline(always)]
+    fn has_density(&self) -> bool {
+        self.defined && self.denominator > 0.0
+    }
+
+    /// [`table_pdf`](Self::table_pdf) given p_xv(p) (looked up in a batch).
+    #[inline(always)]
+    pub(crate) fn table_pdf_from(&self, p_xv: f32) -> f32 {
+        if !self.has_density() {
+            return 0.0;
+        }
+        let p = p_xv / self.denominator;
         if p.is_finite() {
             p
         } else {

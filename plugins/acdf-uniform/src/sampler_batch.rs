@@ -260,12 +260,20 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             wo,
             geometry: slice.geometry(),
         };
+        let mut points = [Vec2::ZERO; BATCH_CHUNK];
+        let mut p_xv = [0.0f32; BATCH_CHUNK];
         for (wc, oc) in wi.chunks(BATCH_CHUNK).zip(out.chunks_mut(BATCH_CHUNK)) {
             let n = wc.len().min(oc.len());
             coordinate_lanes(&frame, &wc[..n], &mut coordinates);
+            // All lanes' densities in one call to the slice (lanes without
+            // a density look up a point that is then ignored).
+            for (l, p) in points[..n].iter_mut().enumerate() {
+                *p = Vec2::new(coordinates.x[l], coordinates.v[l]);
+            }
+            slice.dist.pdf_batch(&points[..n], &mut p_xv[..n]);
             for (l, (o, &wi)) in oc[..n].iter_mut().zip(&wc[..n]).enumerate() {
                 *o = if wi.is_finite() && wi.z > 0.0 {
-                    self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi)
+                    self.mix_with_cosine(coordinates.get(l).table_pdf_from(p_xv[l]), wi)
                 } else {
                     0.0
                 };
