@@ -718,6 +718,125 @@ impl AdaptiveCdf2D {
     }
 }
 
+impl AdaptiveCdf2D {
+    /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
+    /// shading points) and answer, into `same`, the box test
+    /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
+    /// of each draw in its own distribution: exactly
+    /// `dists[k].sample_and_same_segment(u[k], margin)`. The draws go
+    /// [`LANES`] at a time in stages (marginal segments, conditional
+    /// segments, then positions), so that the searches of different slices
+    /// overlap. Entries beyond the shortest of the four lengths are left
+    /// alone.
+    pub fn sample_each_and_same_segment(
+        dists: &[&AdaptiveCdf2D],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        let len = dists.len().min(u.len()).min(out.len()).min(same.len());
+        let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = Avx2::detect() {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { Self::sample_each_avx2(avx2, dists, u, margin, out, same) };
+            return;
+        }
+        Self::sample_each_lanes(Baseline, dists, u, margin, out, same);
+    }
+
+    /// [`sample_each_and_same_segment`](Self::sample_each_and_same_segment)
+    /// compiled for AVX2 (the window counts become 8-wide compares); the
+    /// same IEEE operations in the same order, so the same samples.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn sample_each_avx2(
+        avx2: Avx2,
+        dists: &[&AdaptiveCdf2D],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        Self::sample_each_lanes(avx2, dists, u, margin, out, same);
+    }
+
+    /// The stages of
+    /// [`sample_each_and_same_segment`](Self::sample_each_and_same_segment),
+    /// for slices of equal length.
+    #[inline(always)]
+    fn sample_each_lanes<C: WindowCompare>(
+        cmp: C,
+        dists: &[&AdaptiveCdf2D],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        let mut d_chunks = dists.chunks_exact(LANES);
+        let mut u_chunks = u.chunks_exact(LANES);
+        let mut out_chunks = out.chunks_exact_mut(LANES);
+        let mut same_chunks = same.chunks_exact_mut(LANES);
+        // The segment u falls in, with its index (the uniform stand-in's one
+        // segment for a curve of fewer than two vertices).
+        #[inline(always)]
+        fn drawn_segment<C: WindowCompare>(cmp: C, curve: Curve<'_>, u: f32) -> (usize, Segment) {
+            if curve.is_uniform() {
+                (0, Segment::UNIFORM)
+            } else {
+                let i = curve.segment_of_u_with(cmp, u);
+                (i, curve.segment(i))
+            }
+        }
+        let inside = |x: f32, m: f32, s: &Segment| {
+            (x - m >= 0.0) & (x + m < 1.0) & (x - m >= s.x0) & (x + m < s.x1)
+        };
+        for (((dc, uc), oc), sc) in (&mut d_chunks)
+            .zip(&mut u_chunks)
+            .zip(&mut out_chunks)
+            .zip(&mut same_chunks)
+        {
+            let (mut ux, mut uy) = ([0.0f32; LANES], [0.0f32; LANES]);
+            for ((x, y), u) in ux.iter_mut().zip(&mut uy).zip(uc) {
+                *x = clamp_unit(u.x);
+                *y = clamp_unit(u.y);
+            }
+            let mut rows = [Segment::UNIFORM; LANES];
+            let mut j = [0usize; LANES];
+            for l in 0..LANES {
+                (j[l], rows[l]) = drawn_segment(cmp, dc[l].marginal_curve(), uy[l]);
+            }
+            let mut columns = [Segment::UNIFORM; LANES];
+            for l in 0..LANES {
+                columns[l] = drawn_segment(cmp, dc[l].conditional(j[l]), ux[l]).1;
+            }
+            let sy = segment_samples(&rows, &uy);
+            let sx = segment_samples(&columns, &ux);
+            for l in 0..LANES {
+                oc[l] = Sample2D {
+                    p: Vec2::new(sx.0[l], sy.0[l]),
+                    pdf: sy.1[l] * sx.1[l],
+                };
+                sc[l] =
+                    inside(sy.0[l], margin.y, &rows[l]) & inside(sx.0[l], margin.x, &columns[l]);
+            }
+        }
+        for (((d, &u), o), s) in d_chunks
+            .remainder()
+            .iter()
+            .zip(u_chunks.remainder())
+            .zip(out_chunks.into_remainder())
+            .zip(same_chunks.into_remainder())
+        {
+            (*o, *s) = d.sample_and_same_segment(u, margin);
+        }
+    }
+}
+
 /// The number of draws the batch samplers advance together.
 const LANES: usize = 8;
 
@@ -1010,6 +1129,52 @@ mod fast_sampling_tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    /// Draws from a different distribution in every lane (peaked, flat,
+    /// with empty conditionals, all zero) give each distribution's own
+    /// sample and box test, in full stages and in the tail.
+    #[test]
+    fn each_lane_draws_from_its_own_distribution() {
+        let mut next = stream(23);
+        let simplifier = DouglasPeucker::vertical();
+        let (nx, ny) = (32, 64);
+        let peaked: Vec<f32> = (0..nx * ny)
+            .map(|k| if k % 97 == 5 { 50.0 } else { next() * next() })
+            .collect();
+        let flat = vec![1.0f32; nx * ny];
+        let zero = vec![0.0f32; nx * ny];
+        let mut dists = vec![
+            AdaptiveCdf2D::from_values(&peaked, nx, ny, &simplifier, 1e-3).unwrap(),
+            AdaptiveCdf2D::from_values(&flat, nx, ny, &simplifier, 1e-2).unwrap(),
+            AdaptiveCdf2D::from_values(&zero, nx, ny, &simplifier, 1e-2).unwrap(),
+        ];
+        dists.push(AdaptiveCdf2D {
+            marginal: vec![0.0, 0.5, 1.0, 0.0, 0.25, 1.0].into_boxed_slice(),
+            offsets: vec![0, 0, 2].into_boxed_slice(),
+            conditionals: vec![0.0, 1.0, 0.0, 1.0].into_boxed_slice(),
+            integral: 1.0,
+        });
+        let n = 203;
+        let lanes: Vec<&AdaptiveCdf2D> = (0..n)
+            .map(|k| &dists[(k * 7 + k / 5) % dists.len()])
+            .collect();
+        let mut u: Vec<Vec2> = (0..n).map(|_| Vec2::new(next(), next())).collect();
+        u[3] = Vec2::new(f32::NAN, 1.0);
+        u[4] = Vec2::new(-1.0, ONE_MINUS_EPSILON);
+        for m in [1e-5f32, 0.05] {
+            let margin = Vec2::splat(m);
+            let mut out = vec![Sample2D::default(); n];
+            let mut same = vec![false; n];
+            AdaptiveCdf2D::sample_each_and_same_segment(&lanes, &u, margin, &mut out, &mut same);
+            for k in 0..n {
+                assert_eq!(
+                    (out[k], same[k]),
+                    lanes[k].sample_and_same_segment(u[k], margin),
+                    "lane {k}"
+                );
             }
         }
     }

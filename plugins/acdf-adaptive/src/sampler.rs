@@ -91,6 +91,19 @@ impl SliceBuilder for AdaptiveBuilder {
     ) {
         dist.sample_batch_and_same_segment(u, margin, out, same);
     }
+
+    /// The staged draws from many slices with their box tests
+    /// ([`AdaptiveCdf2D::sample_each_and_same_segment`]).
+    fn sample_each_and_same_cell(
+        &self,
+        dists: &[&AdaptiveCdf2D],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        AdaptiveCdf2D::sample_each_and_same_segment(dists, u, margin, out, same);
+    }
 }
 
 /// The adaptive sampler: tabulation, cell lookup, cosine mixing and lazy

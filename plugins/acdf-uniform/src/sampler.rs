@@ -83,6 +83,25 @@ pub trait SliceBuilder: Send + Sync {
             *o = d.sample(u);
         }
     }
+
+    /// [`sample_each`](Self::sample_each) and, into `same`,
+    /// [`same_cell_around`](Self::same_cell_around) of every sample in its
+    /// own slice (the four slices are equally long). The default makes the
+    /// two passes; a builder whose distribution can answer the box test from
+    /// each draw's own search overrides it.
+    fn sample_each_and_same_cell(
+        &self,
+        dists: &[&Self::Dist],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        self.sample_each(dists, u, out);
+        for ((same, s), d) in same.iter_mut().zip(out.iter()).zip(dists) {
+            *same = self.same_cell_around(d, s.p, margin);
+        }
+    }
 }
 
 /// Builds [`PiecewiseConstant2D`] slices: the uniform tabulation itself.

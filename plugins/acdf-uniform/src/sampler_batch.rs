@@ -386,10 +386,18 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             }
             let m = dists.len();
             let mut compact = [Sample2D::default(); BATCH_CHUNK];
-            self.builder
-                .sample_each(&dists, &lane_u[..m], &mut compact[..m]);
-            for (&l, &s) in lane_of[..m].iter().zip(&compact[..m]) {
-                drawn[l] = s;
+            let mut compact_same = [false; BATCH_CHUNK];
+            self.builder.sample_each_and_same_cell(
+                &dists,
+                &lane_u[..m],
+                Vec2::splat(CELL_MARGIN),
+                &mut compact[..m],
+                &mut compact_same[..m],
+            );
+            let mut same = [false; BATCH_CHUNK];
+            for (k, &l) in lane_of[..m].iter().enumerate() {
+                drawn[l] = compact[k];
+                same[l] = compact_same[k];
             }
             draw_lanes(&lanes, &drawn[..n], &mut draws);
             for (l, w) in wi[..n].iter_mut().enumerate() {
@@ -400,13 +408,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
                 *o = lanes.slice(l).and_then(|slice| {
                     self.finish_draw_with(
                         &draws.get(l),
-                        || {
-                            self.builder.same_cell_around(
-                                slice.dist,
-                                drawn[l].p,
-                                Vec2::splat(CELL_MARGIN),
-                            )
-                        },
+                        || same[l],
                         || self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi[l]),
                     )
                 });
