@@ -723,11 +723,12 @@ impl AdaptiveCdf2D {
     /// shading points) and answer, into `same`, the box test
     /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
     /// of each draw in its own distribution: exactly
-    /// `dists[k].sample_and_same_segment(u[k], margin)`. The draws go
-    /// [`LANES`] at a time in stages (marginal segments, conditional
-    /// segments, then positions), so that the searches of different slices
-    /// overlap. Entries beyond the shortest of the four lengths are left
-    /// alone.
+    /// `dists[k].sample_and_same_segment(u[k], margin)`. Where the CPU has
+    /// AVX2 the draws go 64 at a time in SIMD lanes, each lane
+    /// reading its own distribution (`dist/gather.rs`); elsewhere [`LANES`]
+    /// at a time in scalar stages (marginal segments, conditional segments,
+    /// then positions), so that the searches of different slices overlap.
+    /// Entries beyond the shortest of the four lengths are left alone.
     pub fn sample_each_and_same_segment(
         dists: &[&AdaptiveCdf2D],
         u: &[Vec2],
@@ -738,31 +739,12 @@ impl AdaptiveCdf2D {
         let len = dists.len().min(u.len()).min(out.len()).min(same.len());
         let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = Avx2::detect() {
+        if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_avx2(avx2, dists, u, margin, out, same) };
+            unsafe { Self::sample_each_gather(dists, u, margin, out, same) };
             return;
         }
         Self::sample_each_lanes(Baseline, dists, u, margin, out, same);
-    }
-
-    /// [`sample_each_and_same_segment`](Self::sample_each_and_same_segment)
-    /// compiled for AVX2 (the window counts become 8-wide compares); the
-    /// same IEEE operations in the same order, so the same samples.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn sample_each_avx2(
-        avx2: Avx2,
-        dists: &[&AdaptiveCdf2D],
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        Self::sample_each_lanes(avx2, dists, u, margin, out, same);
     }
 
     /// The stages of
@@ -833,6 +815,80 @@ impl AdaptiveCdf2D {
             .zip(same_chunks.into_remainder())
         {
             (*o, *s) = d.sample_and_same_segment(u, margin);
+        }
+    }
+}
+
+impl AdaptiveCdf2D {
+    /// `dists[k].pdf(p[k])` for every k (the slices of a batch of shading
+    /// points), bit for bit, [`LANES`] at a time in stages (marginal
+    /// segments, conditional segments, densities) so that the searches of
+    /// different slices overlap; where the CPU has AVX2, 64 at a time
+    /// in SIMD lanes, each lane reading its own distribution
+    /// (`dist/gather.rs`). Entries beyond the shortest of the three lengths
+    /// are left alone.
+    pub fn pdf_each(dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
+        let len = dists.len().min(p.len()).min(out.len());
+        let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { Self::pdf_each_gather(dists, p, out) };
+            return;
+        }
+        Self::pdf_each_lanes(dists, p, out);
+    }
+
+    /// The scalar stages of [`pdf_each`](Self::pdf_each), for slices of
+    /// equal length.
+    fn pdf_each_lanes(dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
+        let mut d_chunks = dists.chunks_exact(LANES);
+        let mut p_chunks = p.chunks_exact(LANES);
+        let mut out_chunks = out.chunks_exact_mut(LANES);
+        for ((dc, pc), oc) in (&mut d_chunks).zip(&mut p_chunks).zip(&mut out_chunks) {
+            // Points outside the square look up (0, 0) and get 0 below.
+            let mut inside = [false; LANES];
+            let (mut x, mut y) = ([0.0f32; LANES], [0.0f32; LANES]);
+            for l in 0..LANES {
+                inside[l] = (0.0..1.0).contains(&pc[l].x) && (0.0..1.0).contains(&pc[l].y);
+                (x[l], y[l]) = if inside[l] {
+                    (pc[l].x, pc[l].y)
+                } else {
+                    (0.0, 0.0)
+                };
+            }
+            let mut j = [0usize; LANES];
+            let mut py = [0.0f32; LANES];
+            for l in 0..LANES {
+                let m = dc[l].marginal_curve();
+                if m.is_uniform() {
+                    py[l] = 1.0;
+                } else {
+                    j[l] = m.segment_of(y[l]);
+                    py[l] = m.density(j[l]);
+                }
+            }
+            for l in 0..LANES {
+                let c = dc[l].conditional(j[l]);
+                let px = if c.is_uniform() {
+                    1.0
+                } else {
+                    c.density(c.segment_of(x[l]))
+                };
+                oc[l] = if inside[l] && py[l] != 0.0 {
+                    py[l] * px
+                } else {
+                    0.0
+                };
+            }
+        }
+        for ((o, d), &p) in out_chunks
+            .into_remainder()
+            .iter_mut()
+            .zip(d_chunks.remainder())
+            .zip(p_chunks.remainder())
+        {
+            *o = d.pdf(p);
         }
     }
 }
@@ -1176,6 +1232,20 @@ mod fast_sampling_tests {
                     "lane {k}"
                 );
             }
+        }
+        // Densities at the raw u (outside the square and NaN included) and
+        // at draws from the other distributions.
+        let mut points = u.clone();
+        points.extend((0..n).map(|k| lanes[(k + 1) % n].sample(u[k]).p));
+        let each: Vec<&AdaptiveCdf2D> = lanes.iter().chain(&lanes).copied().collect();
+        let mut densities = vec![0.0f32; points.len()];
+        AdaptiveCdf2D::pdf_each(&each, &points, &mut densities);
+        for k in 0..points.len() {
+            assert_eq!(
+                densities[k].to_bits(),
+                each[k].pdf(points[k]).to_bits(),
+                "lane {k}"
+            );
         }
     }
 

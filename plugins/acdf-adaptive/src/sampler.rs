@@ -104,6 +104,11 @@ impl SliceBuilder for AdaptiveBuilder {
     ) {
         AdaptiveCdf2D::sample_each_and_same_segment(dists, u, margin, out, same);
     }
+
+    /// The staged lookups in many slices ([`AdaptiveCdf2D::pdf_each`]).
+    fn pdf_each(&self, dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
+        AdaptiveCdf2D::pdf_each(dists, p, out);
+    }
 }
 
 /// The adaptive sampler: tabulation, cell lookup, cosine mixing and lazy

@@ -767,34 +767,25 @@ impl PiecewiseConstant2D {
 impl PiecewiseConstant2D {
     /// Draw `u[k]` from `dists[k]` for every k: the slices of a batch of
     /// shading points, each with its own outgoing direction. The same
-    /// samples as [`sample`](Distribution2D::sample) of each; the draws go
-    /// in stages of sixteen (rows, then columns, then positions) as in
-    /// `sample_batch`, so that the loads of different slices, which are
-    /// rarely in the nearest cache, overlap.
+    /// samples as [`sample`](Distribution2D::sample) of each. Where the CPU
+    /// has AVX2, 64 draws at a time in SIMD lanes, each lane reading its own
+    /// slice (`distribution/gather.rs`); elsewhere in scalar stages of
+    /// sixteen (rows, then columns, then positions). Either way the loads of
+    /// different slices, which are rarely in the nearest cache, overlap.
     pub fn sample_each(dists: &[&PiecewiseConstant2D], u: &[Vec2], out: &mut [Sample2D]) {
+        let len = dists.len().min(u.len()).min(out.len());
+        let (dists, u, out) = (&dists[..len], &u[..len], &mut out[..len]);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_avx2(dists, u, out) };
+            unsafe { Self::sample_each_gather(dists, u, out) };
             return;
         }
         Self::sample_each_lanes(dists, u, out);
     }
 
-    /// [`sample_each`](Self::sample_each) compiled for AVX2: the column
-    /// counts become 8-wide compares and `floor` an instruction; without
-    /// fast-math the arithmetic is the same IEEE operations in the same
-    /// order, so the samples are bit-identical.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn sample_each_avx2(dists: &[&PiecewiseConstant2D], u: &[Vec2], out: &mut [Sample2D]) {
-        Self::sample_each_lanes(dists, u, out);
-    }
-
-    /// The stages of [`sample_each`](Self::sample_each).
+    /// The scalar stages of [`sample_each`](Self::sample_each), for slices
+    /// of equal length.
     #[inline(always)]
     fn sample_each_lanes(dists: &[&PiecewiseConstant2D], u: &[Vec2], out: &mut [Sample2D]) {
         let len = dists.len().min(u.len()).min(out.len());
@@ -1188,6 +1179,52 @@ mod tests {
                 prop_assert_eq!(b.to_bits(), d2.pdf(p).to_bits(), "pdf_batch at {}", p);
             }
         }
+    }
+
+    /// `sample_each` draws every lane from its own distribution, exactly as
+    /// `sample` does: stages of one shape (the lanes path), stages mixing
+    /// shapes (the scalar stages) and the tail.
+    #[test]
+    fn each_lane_draws_from_its_own_table() {
+        let table = |seed: usize, nx: usize, ny: usize| -> PiecewiseConstant2D {
+            let values: Vec<f32> = (0..nx * ny)
+                .map(|k| {
+                    if (k * 31 + seed).is_multiple_of(11) {
+                        0.0
+                    } else {
+                        ((k * 7 + seed) % 13) as f32
+                    }
+                })
+                .collect();
+            PiecewiseConstant2D::new(&values, nx, ny).unwrap()
+        };
+        let same_shape: Vec<PiecewiseConstant2D> = (0..5).map(|s| table(s, 32, 64)).collect();
+        let odd_shape = table(9, 5, 3);
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let n = 64 * 3 + 17;
+        let mut lanes: Vec<&PiecewiseConstant2D> =
+            (0..n).map(|k| &same_shape[(k * 3 + k / 7) % 5]).collect();
+        // The second stage mixes in another shape.
+        lanes[64 + 5] = &odd_shape;
+        let mut u: Vec<Vec2> = (0..n).map(|_| Vec2::new(next(), next())).collect();
+        u[1] = Vec2::new(f32::NAN, 1.0);
+        u[2] = Vec2::new(-3.0, 0.0);
+        u[3] = Vec2::new(same_shape[0].cdf()[5], same_shape[0].marginal()[7]);
+        let mut out = vec![Sample2D::default(); n + 2];
+        PiecewiseConstant2D::sample_each(&lanes, &u, &mut out);
+        for k in 0..n {
+            assert_eq!(out[k], lanes[k].sample(u[k]), "lane {k}");
+        }
+        assert_eq!(out[n..], [Sample2D::default(); 2]);
+        let mut staged = vec![Sample2D::default(); n];
+        PiecewiseConstant2D::sample_each_lanes(&lanes, &u, &mut staged);
+        assert_eq!(staged, out[..n]);
     }
 
     /// Tables with zeros and a wide dynamic range.

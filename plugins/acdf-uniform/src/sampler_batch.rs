@@ -421,6 +421,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// table lookup.
     pub(super) fn pdf_each_table(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
         let mut coordinates = CoordinateLanes::new();
+        let mut dists = Vec::with_capacity(BATCH_CHUNK);
         let chunks = wo
             .chunks(BATCH_CHUNK)
             .zip(wi.chunks(BATCH_CHUNK))
@@ -429,11 +430,31 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             let n = wc.len().min(ic.len()).min(oc.len());
             let lanes = OutgoingLanes::find(self, &wc[..n]);
             coordinate_lanes(&lanes, &ic[..n], &mut coordinates);
+            // The densities of the lanes with a slice, from their slices
+            // together (the builder overlaps the lookups where it can).
+            dists.clear();
+            let mut points = [Vec2::ZERO; BATCH_CHUNK];
+            let mut lane_of = [0usize; BATCH_CHUNK];
+            for l in 0..n {
+                if let Some(dist) = lanes.dist[l] {
+                    points[dists.len()] = Vec2::new(coordinates.x[l], coordinates.v[l]);
+                    lane_of[dists.len()] = l;
+                    dists.push(dist);
+                }
+            }
+            let m = dists.len();
+            let mut compact_p = [0.0f32; BATCH_CHUNK];
+            self.builder
+                .pdf_each(&dists, &points[..m], &mut compact_p[..m]);
+            let mut p_xv = [0.0f32; BATCH_CHUNK];
+            for (k, &l) in lane_of[..m].iter().enumerate() {
+                p_xv[l] = compact_p[k];
+            }
             for (l, o) in oc[..n].iter_mut().enumerate() {
                 let wi = ic[l];
                 *o = match lanes.dist[l] {
-                    Some(dist) if wi.is_finite() && wi.z > 0.0 => {
-                        self.mix_with_cosine(coordinates.get(l).table_pdf(dist), wi)
+                    Some(_) if wi.is_finite() && wi.z > 0.0 => {
+                        self.mix_with_cosine(coordinates.get(l).table_pdf_from(p_xv[l]), wi)
                     }
                     Some(_) => 0.0,
                     // An invalid wo, or a slice that failed to build.

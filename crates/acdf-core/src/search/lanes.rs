@@ -127,9 +127,9 @@ impl Bracket {
     /// # Safety
     /// AVX2; every `base + last` (with `last >= 0`) indexes `data`.
     #[inline(always)]
-    pub unsafe fn lift(
+    pub unsafe fn lift<S: Source>(
         &mut self,
-        data: *const f32,
+        data: &S,
         base: &[__m256i; GROUPS],
         last: &[__m256i; GROUPS],
         u: &[__m256; GROUPS],
@@ -140,7 +140,7 @@ impl Bracket {
             let offset = _mm256_set1_epi32(step as i32 - 1);
             for g in 0..GROUPS {
                 let at = _mm256_min_epi32(_mm256_add_epi32(self.count[g], offset), last[g]);
-                let entry = _mm256_i32gather_ps::<4>(data, _mm256_add_epi32(base[g], at));
+                let entry = data.gather(g, _mm256_add_epi32(base[g], at));
                 let below = _mm256_cmp_ps::<_CMP_LE_OQ>(entry, u[g]);
                 self.count[g] = _mm256_add_epi32(
                     self.count[g],
@@ -154,6 +154,146 @@ impl Bracket {
     }
 }
 
+/// Where the lanes read their entries from: one array shared by every lane
+/// ([`Shared`]: a batch from one distribution) or one array per lane
+/// ([`PerLane`]: the slices of a wavefront of shading points). Entries are
+/// 4 bytes (`f32`, or `u32` read as their bits).
+pub trait Source: Copy {
+    /// Entry `index` of each lane's array in group `g`.
+    ///
+    /// # Safety
+    /// AVX2; every index is inside its lane's array.
+    unsafe fn gather(&self, g: usize, index: __m256i) -> __m256;
+
+    /// Entries `index` and `index + 1` of each lane's array in group `g`
+    /// (a segment's two ends, a conditional's two offsets).
+    ///
+    /// # Safety
+    /// AVX2; every `index + 1` is inside its lane's array.
+    unsafe fn gather_pairs(&self, g: usize, index: __m256i) -> (__m256, __m256);
+}
+
+/// One array read by every lane.
+pub struct Shared<T>(pub *const T);
+
+impl<T> Clone for Shared<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<T> Copy for Shared<T> {}
+
+impl<T> Source for Shared<T> {
+    #[inline(always)]
+    unsafe fn gather(&self, _g: usize, index: __m256i) -> __m256 {
+        _mm256_i32gather_ps::<4>(self.0 as *const f32, index)
+    }
+
+    /// Two 64-bit gathers of four lanes each, which cost about as much as
+    /// one 32-bit gather of eight, instead of two of those.
+    #[inline(always)]
+    unsafe fn gather_pairs(&self, _g: usize, index: __m256i) -> (__m256, __m256) {
+        let pairs = self.0 as *const f64;
+        let low = _mm256_i32gather_pd::<4>(pairs, _mm256_castsi256_si128(index));
+        let high = _mm256_i32gather_pd::<4>(pairs, _mm256_extracti128_si256::<1>(index));
+        split_pairs(low, high)
+    }
+}
+
+/// One array per lane, for the [`STAGE`] lanes of a stage: the addresses
+/// of the arrays as 64-bit lanes, four per register. Each gather is then
+/// two 64-bit-indexed gathers of four lanes, whose base is 0 and whose
+/// indices are the lanes' own addresses plus the entry offsets.
+#[derive(Clone, Copy)]
+pub struct PerLane {
+    /// Lanes 0..4 and 4..8 of each group.
+    low: [__m256i; GROUPS],
+    high: [__m256i; GROUPS],
+}
+
+impl PerLane {
+    /// The arrays starting at `starts[l]` for lane l (each must stay
+    /// alive, and be read only at valid indices, while this is used).
+    ///
+    /// # Safety
+    /// AVX2.
+    #[inline(always)]
+    pub unsafe fn new<T>(starts: &[*const T; STAGE]) -> PerLane {
+        let address = |l: usize| starts[l] as usize as i64;
+        let mut lanes = PerLane {
+            low: [_mm256_setzero_si256(); GROUPS],
+            high: [_mm256_setzero_si256(); GROUPS],
+        };
+        for g in 0..GROUPS {
+            let l = 8 * g;
+            lanes.low[g] =
+                _mm256_setr_epi64x(address(l), address(l + 1), address(l + 2), address(l + 3));
+            lanes.high[g] = _mm256_setr_epi64x(
+                address(l + 4),
+                address(l + 5),
+                address(l + 6),
+                address(l + 7),
+            );
+        }
+        lanes
+    }
+
+    /// The byte addresses of entries `index` (4-byte entries) of lanes
+    /// 0..4 and 4..8 of group g.
+    #[inline(always)]
+    unsafe fn addresses(&self, g: usize, index: __m256i) -> (__m256i, __m256i) {
+        let bytes = |i: __m128i| _mm256_slli_epi64::<2>(_mm256_cvtepi32_epi64(i));
+        (
+            _mm256_add_epi64(self.low[g], bytes(_mm256_castsi256_si128(index))),
+            _mm256_add_epi64(self.high[g], bytes(_mm256_extracti128_si256::<1>(index))),
+        )
+    }
+}
+
+impl Source for PerLane {
+    #[inline(always)]
+    unsafe fn gather(&self, g: usize, index: __m256i) -> __m256 {
+        let (low, high) = self.addresses(g, index);
+        // Base 0: the indices are the addresses themselves.
+        let base = std::ptr::null::<f32>();
+        join_halves(
+            _mm256_i64gather_ps::<1>(base, low),
+            _mm256_i64gather_ps::<1>(base, high),
+        )
+    }
+
+    #[inline(always)]
+    unsafe fn gather_pairs(&self, g: usize, index: __m256i) -> (__m256, __m256) {
+        let (low, high) = self.addresses(g, index);
+        let base = std::ptr::null::<f64>();
+        split_pairs(
+            _mm256_i64gather_pd::<1>(base, low),
+            _mm256_i64gather_pd::<1>(base, high),
+        )
+    }
+}
+
+/// Two registers of four (a, b) pairs of 4-byte entries, lanes 0..4 and
+/// 4..8, as the eight a and the eight b in lane order.
+#[inline(always)]
+unsafe fn split_pairs(low: __m256d, high: __m256d) -> (__m256, __m256) {
+    let (low, high) = (_mm256_castpd_ps(low), _mm256_castpd_ps(high));
+    // low = a0 b0 a1 b1 | a2 b2 a3 b3, high = a4 b4 a5 b5 | a6 b6 a7 b7.
+    let a = _mm256_shuffle_ps::<0b10_00_10_00>(low, high);
+    let b = _mm256_shuffle_ps::<0b11_01_11_01>(low, high);
+    (pair_order(a), pair_order(b))
+}
+
+/// Two registers of four lanes as one of eight.
+///
+/// # Safety
+/// AVX2.
+#[inline(always)]
+pub unsafe fn join_halves(low: __m128, high: __m128) -> __m256 {
+    _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(low), high)
+}
+
 /// Entry b (0..16) of the sixteen lanes of `first` and `second`: the
 /// permutation reads the low three bits, the block number's fourth bit
 /// picks the register.
@@ -165,25 +305,6 @@ unsafe fn select16(first: __m256, second: __m256, b: __m256i) -> __m256 {
         _mm256_permutevar8x32_ps(second, b),
         high,
     )
-}
-
-/// For each lane, the two neighbouring entries `data[i]` and `data[i + 1]`
-/// (a segment's two ends, a conditional's two offsets): two 64-bit gathers
-/// of four lanes each, which cost about as much as one 32-bit gather of
-/// eight, instead of two of those.
-///
-/// # Safety
-/// AVX2; every `i + 1` indexes `data`, which holds 4-byte values.
-#[inline(always)]
-pub unsafe fn gather_pairs<T>(data: *const T, i: __m256i) -> (__m256, __m256) {
-    let pairs = data as *const f64;
-    let low = _mm256_i32gather_pd::<4>(pairs, _mm256_castsi256_si128(i));
-    let high = _mm256_i32gather_pd::<4>(pairs, _mm256_extracti128_si256::<1>(i));
-    let (low, high) = (_mm256_castpd_ps(low), _mm256_castpd_ps(high));
-    // low = a0 b0 a1 b1 | a2 b2 a3 b3, high = a4 b4 a5 b5 | a6 b6 a7 b7.
-    let a = _mm256_shuffle_ps::<0b10_00_10_00>(low, high);
-    let b = _mm256_shuffle_ps::<0b11_01_11_01>(low, high);
-    (pair_order(a), pair_order(b))
 }
 
 /// [`clamp_unit`](crate::clamp_unit) in lanes: u > 0 (false for NaN) keeps
@@ -348,7 +469,7 @@ mod tests {
         };
         let last = [_mm256_set1_epi32(run.len() as i32 - 1); GROUPS];
         b.lift(
-            run.as_ptr(),
+            &Shared(run.as_ptr()),
             &[_mm256_setzero_si256(); GROUPS],
             &last,
             &lanes,
@@ -399,7 +520,10 @@ mod tests {
         }
     }
 
-    /// Lanes searching different lists of different lengths in one buffer.
+    /// Lanes searching different lists of different lengths, all in one
+    /// buffer ([`Shared`] with a start per lane) and each in its own
+    /// allocation ([`PerLane`]): the same counts and brackets, and the same
+    /// pairs of neighbouring entries.
     #[test]
     fn per_lane_lists_of_different_lengths() {
         if !avx2() {
@@ -421,30 +545,60 @@ mod tests {
             last[k] = list.len() as i32 - 1;
             data.extend_from_slice(list);
         }
+        let starts: [*const f32; STAGE] = std::array::from_fn(|k| lists[k].as_ptr());
         let u: Vec<f32> = (0..STAGE).map(|k| ((k * 37) % 64) as f32 / 64.0).collect();
-        // SAFETY: AVX2 was found above; every base + last indexes `data`.
-        let b = unsafe {
+        let longest = lists.iter().map(Vec::len).max().unwrap();
+        // SAFETY: AVX2 was found above; every base + last indexes `data`,
+        // and every last indexes its own list.
+        let (shared, own, pairs) = unsafe {
             let load_i = |v: &[i32]| _mm256_loadu_si256(v.as_ptr() as *const __m256i);
             let bases: [__m256i; GROUPS] = std::array::from_fn(|g| load_i(&base[8 * g..]));
             let lasts: [__m256i; GROUPS] = std::array::from_fn(|g| load_i(&last[8 * g..]));
             let us: [__m256; GROUPS] =
                 std::array::from_fn(|g| _mm256_loadu_ps(u[8 * g..].as_ptr()));
-            let longest = lists.iter().map(Vec::len).max().unwrap();
-            let mut b = Bracket::start();
-            b.lift(
-                data.as_ptr(),
-                &bases,
-                &lasts,
-                &us,
-                longest.next_power_of_two() / 2,
-            );
-            b
+            let step = longest.next_power_of_two() / 2;
+            let mut shared = Bracket::start();
+            shared.lift(&Shared(data.as_ptr()), &bases, &lasts, &us, step);
+            let per_lane = PerLane::new(&starts);
+            let zero = [_mm256_setzero_si256(); GROUPS];
+            let mut own = Bracket::start();
+            own.lift(&per_lane, &zero, &lasts, &us, step);
+            // Entries (0, 1) of every list that has two.
+            let pairs: Vec<([f32; 8], [f32; 8])> = (0..GROUPS)
+                .map(|g| {
+                    let (a, b) = per_lane.gather_pairs(g, _mm256_setzero_si256());
+                    (lanes_f32(a), lanes_f32(b))
+                })
+                .collect();
+            (shared, own, pairs)
         };
         for (k, list) in lists.iter().enumerate() {
             let (g, l) = (k / 8, k % 8);
-            // SAFETY: AVX2.
-            let count = unsafe { lanes_i32(b.count[g]) }[l] as usize;
-            assert_eq!(count, list.partition_point(|&e| e <= u[k]), "list {k}");
+            let expected = list.partition_point(|&e| e <= u[k]);
+            let below = if expected == 0 {
+                0.0
+            } else {
+                list[expected - 1]
+            };
+            for b in [&shared, &own] {
+                // SAFETY: AVX2.
+                let (count, lower, upper) = unsafe {
+                    (
+                        lanes_i32(b.count[g]),
+                        lanes_f32(b.lower[g]),
+                        lanes_f32(b.upper[g]),
+                    )
+                };
+                assert_eq!(count[l] as usize, expected, "list {k}");
+                assert_eq!((lower[l], upper[l]), (below, list[expected]), "list {k}");
+            }
+            if list.len() >= 2 {
+                assert_eq!(
+                    (pairs[g].0[l], pairs[g].1[l]),
+                    (list[0], list[1]),
+                    "list {k}"
+                );
+            }
         }
     }
 

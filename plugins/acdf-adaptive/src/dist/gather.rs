@@ -18,9 +18,10 @@
 
 use super::AdaptiveCdf2D;
 use acdf_core::search::lanes::{
-    gather_pairs, in_unit, lanes_i32, load_pairs, load_unit_pairs, store_samples, Bracket, GROUPS,
-    STAGE,
+    in_unit, lanes_i32, load_pairs, load_unit_pairs, store_samples, Bracket, PerLane, Shared,
+    Source, GROUPS, STAGE,
 };
+use acdf_core::search::Baseline;
 use acdf_core::{Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
 
@@ -137,10 +138,11 @@ impl ConditionalLanes {
         }
     }
 
-    /// The conditionals of segments `j`, from the offsets o_j, o_{j+1}.
+    /// The conditionals of segments `j` in group g, from the offsets o_j,
+    /// o_{j+1}.
     #[inline(always)]
-    unsafe fn of(offsets: *const u32, j: __m256i) -> ConditionalLanes {
-        let (o0, o1) = gather_pairs(offsets, j);
+    unsafe fn of<S: Source>(offsets: &S, g: usize, j: __m256i) -> ConditionalLanes {
+        let (o0, o1) = offsets.gather_pairs(g, j);
         let (o0, o1) = (_mm256_castps_si256(o0), _mm256_castps_si256(o1));
         let count = _mm256_sub_epi32(o1, o0);
         let uniform = _mm256_cmpgt_epi32(_mm256_set1_epi32(2), count);
@@ -169,9 +171,10 @@ impl ConditionalLanes {
     /// values, CDF values after a search of positions); the uniform
     /// stand-in's segment (0, 0) to (1, 1) where uniform.
     #[inline(always)]
-    unsafe fn segment(
+    unsafe fn segment<S: Source>(
         &self,
-        data: *const f32,
+        conditionals: &S,
+        g: usize,
         found: (__m256i, __m256, __m256),
         searched_cdfs: bool,
     ) -> SegmentLanes {
@@ -181,7 +184,7 @@ impl ConditionalLanes {
         if !searched_cdfs {
             at = _mm256_andnot_si256(self.uniform, _mm256_add_epi32(at, self.count));
         }
-        let (a, b) = gather_pairs(data, at);
+        let (a, b) = conditionals.gather_pairs(g, at);
         let flat = _mm256_castsi256_ps(self.uniform);
         let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
         let (x0, x1, c0, c1) = if searched_cdfs {
@@ -227,6 +230,238 @@ unsafe fn largest(v: &[__m256i; GROUPS]) -> usize {
     lanes_i32(m).into_iter().max().unwrap_or(0) as usize
 }
 
+/// The distributions a stage's lanes use: their three arrays, where the
+/// lanes read them from, and each marginal's vertex count m.
+struct Tables<'a, S> {
+    marginal: S,
+    offsets: S,
+    conditionals: S,
+    /// m of each lane.
+    vertices: [__m256i; GROUPS],
+    /// The one distribution of every lane (a batch), whose marginal's
+    /// first search steps can then come from registers.
+    shared: Option<&'a AdaptiveCdf2D>,
+}
+
+impl<'a> Tables<'a, Shared<f32>> {
+    /// Every lane reads `d`.
+    #[inline(always)]
+    unsafe fn one(d: &'a AdaptiveCdf2D) -> Self {
+        Tables {
+            marginal: Shared(d.marginal.as_ptr()),
+            offsets: Shared(d.offsets.as_ptr() as *const f32),
+            conditionals: Shared(d.conditionals.as_ptr()),
+            vertices: [_mm256_set1_epi32((d.marginal.len() / 2) as i32); GROUPS],
+            shared: Some(d),
+        }
+    }
+}
+
+impl<'a> Tables<'a, PerLane> {
+    /// Lane l reads `dists[l]`.
+    #[inline(always)]
+    unsafe fn each(dists: &[&'a AdaptiveCdf2D]) -> Self {
+        let mut marginal = [std::ptr::null::<f32>(); STAGE];
+        let mut offsets = [std::ptr::null::<f32>(); STAGE];
+        let mut conditionals = [std::ptr::null::<f32>(); STAGE];
+        let mut m = [0i32; STAGE];
+        for (l, d) in dists.iter().take(STAGE).enumerate() {
+            marginal[l] = d.marginal.as_ptr();
+            offsets[l] = d.offsets.as_ptr() as *const f32;
+            conditionals[l] = d.conditionals.as_ptr();
+            m[l] = (d.marginal.len() / 2) as i32;
+        }
+        let mut vertices = [_mm256_setzero_si256(); GROUPS];
+        for (g, v) in vertices.iter_mut().enumerate() {
+            *v = _mm256_loadu_si256(m[8 * g..].as_ptr() as *const __m256i);
+        }
+        Tables {
+            marginal: PerLane::new(&marginal),
+            offsets: PerLane::new(&offsets),
+            conditionals: PerLane::new(&conditionals),
+            vertices,
+            shared: None,
+        }
+    }
+}
+
+impl<S: Source> Tables<'_, S> {
+    /// The marginal segment of every lane: the count of inner vertex
+    /// values `<= v` among the marginal's positions (`cdfs` false) or CDF
+    /// values (`cdfs` true), bracketed by the values on either side.
+    #[inline(always)]
+    unsafe fn marginal_segments(&self, v: &[__m256; GROUPS], cdfs: bool) -> Bracket {
+        let one = _mm256_set1_epi32(1);
+        // The inner list starts at index 1 (positions) or m + 1 (CDF
+        // values) and holds m - 1 entries, the last being 1.
+        let mut start = [one; GROUPS];
+        let mut last = [one; GROUPS];
+        for g in 0..GROUPS {
+            if cdfs {
+                start[g] = _mm256_add_epi32(self.vertices[g], one);
+            }
+            last[g] = _mm256_sub_epi32(self.vertices[g], _mm256_set1_epi32(2));
+        }
+        let mut rows = Bracket::start();
+        let step = match self.shared {
+            Some(d) => {
+                let m = d.marginal.len() / 2;
+                let run = if cdfs {
+                    &d.marginal[m + 1..]
+                } else {
+                    &d.marginal[1..m]
+                };
+                rows.shared_top(run, v)
+            }
+            None => (largest(&last) + 1).next_power_of_two() / 2,
+        };
+        rows.lift(&self.marginal, &start, &last, v, step);
+        rows
+    }
+
+    /// The conditional of every lane's marginal segment, and the segment
+    /// of each conditional holding `v` (searched among its CDF values or
+    /// positions, as `cdfs` says).
+    #[inline(always)]
+    unsafe fn conditional_segments(
+        &self,
+        rows: &Bracket,
+        v: &[__m256; GROUPS],
+        cdfs: bool,
+    ) -> ([ConditionalLanes; GROUPS], Bracket) {
+        let mut conditional = [ConditionalLanes::none(); GROUPS];
+        let (mut start, mut last) = (
+            [_mm256_setzero_si256(); GROUPS],
+            [_mm256_setzero_si256(); GROUPS],
+        );
+        for g in 0..GROUPS {
+            conditional[g] = ConditionalLanes::of(&self.offsets, g, rows.count[g]);
+            start[g] = conditional[g].inner(cdfs);
+            last[g] = conditional[g].last;
+        }
+        let mut columns = Bracket::start();
+        let step = (largest(&last) + 1).next_power_of_two() / 2;
+        columns.lift(&self.conditionals, &start, &last, v, step);
+        (conditional, columns)
+    }
+
+    /// The samples of a stage for clamped `ux`, `uy`: positions x and y,
+    /// densities, and (with `SAME`) the box-test bits of each group.
+    #[inline(always)]
+    unsafe fn draw<const SAME: bool>(
+        &self,
+        ux: &[__m256; GROUPS],
+        uy: &[__m256; GROUPS],
+        margin: Vec2,
+    ) -> [(__m256, __m256, __m256, i32); GROUPS] {
+        let rows = self.marginal_segments(uy, true);
+        let (conditional, columns) = self.conditional_segments(&rows, ux, true);
+        let mut drawn = [(
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+            _mm256_setzero_ps(),
+            0,
+        ); GROUPS];
+        for g in 0..GROUPS {
+            let (x0, x1) = self.marginal.gather_pairs(g, rows.count[g]);
+            let row = SegmentLanes {
+                x0,
+                x1,
+                c0: rows.lower[g],
+                c1: rows.upper[g],
+            };
+            let found = (columns.count[g], columns.lower[g], columns.upper[g]);
+            let column = conditional[g].segment(&self.conditionals, g, found, true);
+            let (y, pdf_y) = segment_samples_lanes(row, uy[g]);
+            let (x, pdf_x) = segment_samples_lanes(column, ux[g]);
+            let same = if SAME {
+                _mm256_movemask_ps(_mm256_and_ps(
+                    inside_lanes(y, margin.y, row),
+                    inside_lanes(x, margin.x, column),
+                ))
+            } else {
+                0
+            };
+            drawn[g] = (x, y, _mm256_mul_ps(pdf_y, pdf_x), same);
+        }
+        drawn
+    }
+
+    /// The densities at a stage's points (x, y), 0 outside [0, 1)^2 (NaN
+    /// included) and on a zero-mass marginal segment, as `pdf` gives them.
+    #[inline(always)]
+    unsafe fn densities(&self, x: &[__m256; GROUPS], y: &[__m256; GROUPS]) -> [__m256; GROUPS] {
+        let mut inside = [_mm256_setzero_ps(); GROUPS];
+        let (mut xs, mut ys) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
+        for g in 0..GROUPS {
+            inside[g] = _mm256_and_ps(in_unit(x[g]), in_unit(y[g]));
+            // Outside points search at 0 and are zeroed at the end.
+            xs[g] = _mm256_and_ps(x[g], inside[g]);
+            ys[g] = _mm256_and_ps(y[g], inside[g]);
+        }
+        let rows = self.marginal_segments(&ys, false);
+        let (conditional, columns) = self.conditional_segments(&rows, &xs, false);
+        let mut density = [_mm256_setzero_ps(); GROUPS];
+        for g in 0..GROUPS {
+            let at = _mm256_add_epi32(self.vertices[g], rows.count[g]);
+            let (c0, c1) = self.marginal.gather_pairs(g, at);
+            let row = SegmentLanes {
+                x0: rows.lower[g],
+                x1: rows.upper[g],
+                c0,
+                c1,
+            };
+            let found = (columns.count[g], columns.lower[g], columns.upper[g]);
+            let column = conditional[g].segment(&self.conditionals, g, found, false);
+            let py = segment_density_lanes(row);
+            let px = segment_density_lanes(column);
+            // `pdf` returns 0 for a zero-mass marginal segment before
+            // looking at its conditional.
+            let zero_row = _mm256_cmp_ps::<_CMP_EQ_OQ>(py, _mm256_setzero_ps());
+            let p = _mm256_andnot_ps(zero_row, _mm256_mul_ps(py, px));
+            density[g] = _mm256_and_ps(p, inside[g]);
+        }
+        density
+    }
+}
+
+/// Load a stage's uniform pairs, clamped.
+#[inline(always)]
+unsafe fn load_stage_u(u: &[Vec2]) -> ([__m256; GROUPS], [__m256; GROUPS]) {
+    let (mut ux, mut uy) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
+    for g in 0..GROUPS {
+        (ux[g], uy[g]) = load_unit_pairs(&u[8 * g..]);
+    }
+    (ux, uy)
+}
+
+/// Load a stage's points, as they are.
+#[inline(always)]
+unsafe fn load_stage_points(p: &[Vec2]) -> ([__m256; GROUPS], [__m256; GROUPS]) {
+    let (mut x, mut y) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
+    for g in 0..GROUPS {
+        (x[g], y[g]) = load_pairs(&p[8 * g..]);
+    }
+    (x, y)
+}
+
+/// Store a stage's samples and, with `SAME`, its box tests.
+#[inline(always)]
+unsafe fn store_stage<const SAME: bool>(
+    drawn: &[(__m256, __m256, __m256, i32); GROUPS],
+    out: &mut [Sample2D],
+    same: &mut [bool],
+) {
+    for (g, &(x, y, pdf, bits)) in drawn.iter().enumerate() {
+        store_samples(x, y, pdf, &mut out[8 * g..]);
+        if SAME {
+            for (l, s) in same[8 * g..8 * g + 8].iter_mut().enumerate() {
+                *s = bits & (1 << l) != 0;
+            }
+        }
+    }
+}
+
 impl AdaptiveCdf2D {
     /// Whether the lanes paths apply: a marginal of at least two vertices,
     /// at least one stored conditional, and buffers that `i32` lanes index.
@@ -253,83 +488,32 @@ impl AdaptiveCdf2D {
         same: &mut [bool],
     ) {
         let len = u.len().min(out.len());
-        let (u, out) = (&u[..len], &mut out[..len]);
-        let m = self.marginal.len() / 2;
-        // The marginal's CDF values c_1, ..., c_{m-1} (the last is 1).
-        let marginal_run = &self.marginal[m + 1..];
-        let zero = [_mm256_setzero_si256(); GROUPS];
-        let last_marginal = [_mm256_set1_epi32(m as i32 - 2); GROUPS];
-        let mut u_chunks = u.chunks_exact(STAGE);
-        let mut out_chunks = out.chunks_exact_mut(STAGE);
-        for (stage, (uc, oc)) in (&mut u_chunks).zip(&mut out_chunks).enumerate() {
-            let (mut ux, mut uy) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
-            for g in 0..GROUPS {
-                (ux[g], uy[g]) = load_unit_pairs(&uc[8 * g..]);
-            }
-            let mut rows = Bracket::start();
-            let step = rows.shared_top(marginal_run, &uy);
-            rows.lift(marginal_run.as_ptr(), &zero, &last_marginal, &uy, step);
-
-            let mut conditional = [ConditionalLanes::none(); GROUPS];
-            let (mut start, mut last) = (zero, zero);
-            for g in 0..GROUPS {
-                conditional[g] = ConditionalLanes::of(self.offsets.as_ptr(), rows.count[g]);
-                start[g] = conditional[g].inner(true);
-                last[g] = conditional[g].last;
-            }
-            let mut columns = Bracket::start();
-            let step = (largest(&last) + 1).next_power_of_two() / 2;
-            columns.lift(self.conditionals.as_ptr(), &start, &last, &ux, step);
-
-            for g in 0..GROUPS {
-                let (x0, x1) = gather_pairs(self.marginal.as_ptr(), rows.count[g]);
-                let row = SegmentLanes {
-                    x0,
-                    x1,
-                    c0: rows.lower[g],
-                    c1: rows.upper[g],
-                };
-                let found = (columns.count[g], columns.lower[g], columns.upper[g]);
-                let column = conditional[g].segment(self.conditionals.as_ptr(), found, true);
-                let (y, pdf_y) = segment_samples_lanes(row, uy[g]);
-                let (x, pdf_x) = segment_samples_lanes(column, ux[g]);
-                store_samples(x, y, _mm256_mul_ps(pdf_y, pdf_x), &mut oc[8 * g..]);
-                if SAME {
-                    let inside = _mm256_and_ps(
-                        inside_lanes(y, margin.y, row),
-                        inside_lanes(x, margin.x, column),
-                    );
-                    let bits = _mm256_movemask_ps(inside);
-                    let first = stage * STAGE + 8 * g;
-                    for (l, s) in same[first..first + 8].iter_mut().enumerate() {
-                        *s = bits & (1 << l) != 0;
-                    }
-                }
-            }
-        }
-        let tail = len / STAGE * STAGE;
-        for (k, (o, &u)) in out_chunks
-            .into_remainder()
-            .iter_mut()
-            .zip(u_chunks.remainder())
-            .enumerate()
-        {
-            if SAME {
-                let (sample, inside) = self.sample_and_same_segment(u, margin);
-                *o = sample;
-                same[tail + k] = inside;
+        let tables = Tables::one(self);
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let range = k * STAGE..(k + 1) * STAGE;
+            let (ux, uy) = load_stage_u(&u[range.clone()]);
+            let drawn = tables.draw::<SAME>(&ux, &uy, margin);
+            let same = if SAME {
+                &mut same[range.clone()]
             } else {
-                *o = self.sample_inline(u);
+                &mut [][..]
+            };
+            store_stage::<SAME>(&drawn, &mut out[range], same);
+        }
+        for k in stages * STAGE..len {
+            if SAME {
+                (out[k], same[k]) = self.sample_and_same_segment(u[k], margin);
+            } else {
+                out[k] = self.sample_inline(u[k]);
             }
         }
     }
 
     /// The same densities as `pdf`, [`STAGE`] points at a time in AVX2
-    /// lanes: the segments are found by searching the vertex positions
-    /// (the marginal's first four steps from registers), their CDF values
-    /// gathered in pairs, and the densities computed as
-    /// `curve::segment_density` does. Points outside [0, 1)^2 (NaN
-    /// included) get 0, as does a zero-mass marginal segment.
+    /// lanes: the segments are found by searching the vertex positions,
+    /// their CDF values gathered in pairs, and the densities computed as
+    /// `curve::segment_density` does.
     ///
     /// # Safety
     /// The CPU must support AVX2, and [`fits_lanes`](Self::fits_lanes)
@@ -337,67 +521,100 @@ impl AdaptiveCdf2D {
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn pdf_batch_gather(&self, p: &[Vec2], out: &mut [f32]) {
         let len = p.len().min(out.len());
-        let (p, out) = (&p[..len], &mut out[..len]);
-        let m = self.marginal.len() / 2;
-        // The marginal's positions x_1, ..., x_{m-1} (the last is 1).
-        let marginal_run = &self.marginal[1..m];
-        let zero = [_mm256_setzero_si256(); GROUPS];
-        let last_marginal = [_mm256_set1_epi32(m as i32 - 2); GROUPS];
-        let mut p_chunks = p.chunks_exact(STAGE);
-        let mut out_chunks = out.chunks_exact_mut(STAGE);
-        for (pc, oc) in (&mut p_chunks).zip(&mut out_chunks) {
-            let (mut x, mut y) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
-            let mut inside = [_mm256_setzero_ps(); GROUPS];
-            for g in 0..GROUPS {
-                let (px, py) = load_pairs(&pc[8 * g..]);
-                inside[g] = _mm256_and_ps(in_unit(px), in_unit(py));
-                // Outside points search at 0 and are zeroed at the end.
-                x[g] = _mm256_and_ps(px, inside[g]);
-                y[g] = _mm256_and_ps(py, inside[g]);
-            }
-            let mut rows = Bracket::start();
-            let step = rows.shared_top(marginal_run, &y);
-            rows.lift(marginal_run.as_ptr(), &zero, &last_marginal, &y, step);
-
-            let mut conditional = [ConditionalLanes::none(); GROUPS];
-            let (mut start, mut last) = (zero, zero);
-            for g in 0..GROUPS {
-                conditional[g] = ConditionalLanes::of(self.offsets.as_ptr(), rows.count[g]);
-                start[g] = conditional[g].inner(false);
-                last[g] = conditional[g].last;
-            }
-            let mut columns = Bracket::start();
-            let step = (largest(&last) + 1).next_power_of_two() / 2;
-            columns.lift(self.conditionals.as_ptr(), &start, &last, &x, step);
-
-            for g in 0..GROUPS {
-                let (c0, c1) = gather_pairs(self.marginal.as_ptr().add(m), rows.count[g]);
-                let row = SegmentLanes {
-                    x0: rows.lower[g],
-                    x1: rows.upper[g],
-                    c0,
-                    c1,
-                };
-                let found = (columns.count[g], columns.lower[g], columns.upper[g]);
-                let column = conditional[g].segment(self.conditionals.as_ptr(), found, false);
-                let py = segment_density_lanes(row);
-                let px = segment_density_lanes(column);
-                // `pdf` returns 0 for a zero-mass marginal segment before
-                // looking at its conditional.
-                let zero_row = _mm256_cmp_ps::<_CMP_EQ_OQ>(py, _mm256_setzero_ps());
-                let density = _mm256_andnot_ps(zero_row, _mm256_mul_ps(py, px));
+        let tables = Tables::one(self);
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let (x, y) = load_stage_points(&p[k * STAGE..]);
+            let density = tables.densities(&x, &y);
+            for (g, d) in density.iter().enumerate() {
                 _mm256_storeu_ps(
-                    oc[8 * g..8 * g + 8].as_mut_ptr(),
-                    _mm256_and_ps(density, inside[g]),
+                    out[k * STAGE + 8 * g..k * STAGE + 8 * g + 8].as_mut_ptr(),
+                    *d,
                 );
             }
         }
-        for (o, &p) in out_chunks
-            .into_remainder()
-            .iter_mut()
-            .zip(p_chunks.remainder())
-        {
-            *o = acdf_core::Distribution2D::pdf(self, p);
+        for k in stages * STAGE..len {
+            out[k] = acdf_core::Distribution2D::pdf(self, p[k]);
         }
+    }
+
+    /// [`sample_each_and_same_segment`](Self::sample_each_and_same_segment)
+    /// in AVX2 lanes, for slices of equal length: a stage whose
+    /// distributions all fit the lanes is drawn as in
+    /// [`sample_batch_gather`](Self::sample_batch_gather), each lane
+    /// reading its own distribution; other stages and the tail go through
+    /// the scalar stages.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn sample_each_gather(
+        dists: &[&AdaptiveCdf2D],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        let len = dists.len();
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let range = k * STAGE..(k + 1) * STAGE;
+            let stage = &dists[range.clone()];
+            if stage.iter().all(|d| d.fits_lanes()) {
+                let tables = Tables::each(stage);
+                let (ux, uy) = load_stage_u(&u[range.clone()]);
+                let drawn = tables.draw::<true>(&ux, &uy, margin);
+                store_stage::<true>(&drawn, &mut out[range.clone()], &mut same[range]);
+            } else {
+                let r = range.clone();
+                Self::sample_each_lanes(
+                    Baseline,
+                    stage,
+                    &u[r.clone()],
+                    margin,
+                    &mut out[r.clone()],
+                    &mut same[r],
+                );
+            }
+        }
+        let r = stages * STAGE..len;
+        Self::sample_each_lanes(
+            Baseline,
+            &dists[r.clone()],
+            &u[r.clone()],
+            margin,
+            &mut out[r.clone()],
+            &mut same[r],
+        );
+    }
+
+    /// [`pdf_each`](Self::pdf_each) in AVX2 lanes, for slices of equal
+    /// length (see [`sample_each_gather`](Self::sample_each_gather)).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn pdf_each_gather(dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
+        let len = dists.len();
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let range = k * STAGE..(k + 1) * STAGE;
+            let stage = &dists[range.clone()];
+            if stage.iter().all(|d| d.fits_lanes()) {
+                let tables = Tables::each(stage);
+                let (x, y) = load_stage_points(&p[range.clone()]);
+                let density = tables.densities(&x, &y);
+                for (g, d) in density.iter().enumerate() {
+                    _mm256_storeu_ps(
+                        out[k * STAGE + 8 * g..k * STAGE + 8 * g + 8].as_mut_ptr(),
+                        *d,
+                    );
+                }
+            } else {
+                Self::pdf_each_lanes(stage, &p[range.clone()], &mut out[range]);
+            }
+        }
+        let r = stages * STAGE..len;
+        Self::pdf_each_lanes(&dists[r.clone()], &p[r.clone()], &mut out[r]);
     }
 }

@@ -17,8 +17,8 @@
 
 use super::PiecewiseConstant2D;
 use acdf_core::search::lanes::{
-    gather_pairs, in_unit, lanes_f32, lanes_i32, load_pairs, load_unit_pairs, store_samples,
-    Bracket, GROUPS, STAGE,
+    in_unit, lanes_f32, lanes_i32, load_pairs, load_unit_pairs, store_samples, Bracket, PerLane,
+    Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::{Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
@@ -67,6 +67,113 @@ unsafe fn joint_pdf_lanes(marginal: __m256, conditional: __m256) -> __m256 {
     _mm256_blendv_ps(p, _mm256_max_ps(p, _mm256_set1_ps(f32::from_bits(1))), both)
 }
 
+/// The tables a stage's lanes draw from: all of one shape (nx, ny), read
+/// from one distribution or one per lane.
+struct Tables<'a, S> {
+    marginal: S,
+    conditional: S,
+    nx: usize,
+    ny: usize,
+    /// The marginal every lane shares (a batch), whose first search steps
+    /// can then come from registers.
+    shared: Option<&'a [f32]>,
+}
+
+/// A stage's draws: positions, densities, cells, and the lanes (bits of
+/// each group) whose position rounded out of its cell.
+struct Drawn {
+    x: [__m256; GROUPS],
+    y: [__m256; GROUPS],
+    pdf: [__m256; GROUPS],
+    row: [__m256i; GROUPS],
+    column: [__m256i; GROUPS],
+    on_edge: [i32; GROUPS],
+}
+
+impl<S: Source> Tables<'_, S> {
+    /// The draws for clamped `ux`, `uy`.
+    #[inline(always)]
+    unsafe fn draw(&self, ux: &[__m256; GROUPS], uy: &[__m256; GROUPS]) -> Drawn {
+        let (nx, ny) = (self.nx, self.ny);
+        let (nxf, nyf) = (_mm256_set1_ps(nx as f32), _mm256_set1_ps(ny as f32));
+        let zero = [_mm256_setzero_si256(); GROUPS];
+        let last_row = [_mm256_set1_epi32(ny as i32 - 1); GROUPS];
+        let last_column = [_mm256_set1_epi32(nx as i32 - 1); GROUPS];
+        let mut rows = Bracket::start();
+        let step = match self.shared {
+            Some(marginal) => rows.shared_top(marginal, uy),
+            None => ny.next_power_of_two() / 2,
+        };
+        rows.lift(&self.marginal, &zero, &last_row, uy, step);
+        let mut row_start = zero;
+        for g in 0..GROUPS {
+            row_start[g] = _mm256_mullo_epi32(rows.count[g], _mm256_set1_epi32(nx as i32));
+        }
+        let mut columns = Bracket::start();
+        let step = nx.next_power_of_two() / 2;
+        columns.lift(&self.conditional, &row_start, &last_column, ux, step);
+        let mut drawn = Drawn {
+            x: [_mm256_setzero_ps(); GROUPS],
+            y: [_mm256_setzero_ps(); GROUPS],
+            pdf: [_mm256_setzero_ps(); GROUPS],
+            row: rows.count,
+            column: columns.count,
+            on_edge: [0; GROUPS],
+        };
+        for g in 0..GROUPS {
+            let (j, k) = (rows.count[g], columns.count[g]);
+            let row_mass = _mm256_sub_ps(rows.upper[g], rows.lower[g]);
+            let col_mass = _mm256_sub_ps(columns.upper[g], columns.lower[g]);
+            let dv = _mm256_div_ps(_mm256_sub_ps(uy[g], rows.lower[g]), row_mass);
+            let du = _mm256_div_ps(_mm256_sub_ps(ux[g], columns.lower[g]), col_mass);
+            let (x, x_off) = position(k, clamp_fraction(du), nx);
+            let (y, y_off) = position(j, clamp_fraction(dv), ny);
+            drawn.x[g] = x;
+            drawn.y[g] = y;
+            drawn.pdf[g] =
+                joint_pdf_lanes(_mm256_mul_ps(row_mass, nyf), _mm256_mul_ps(col_mass, nxf));
+            drawn.on_edge[g] =
+                _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_or_si256(x_off, y_off)));
+        }
+        drawn
+    }
+}
+
+/// Load a stage's uniform pairs, clamped.
+#[inline(always)]
+unsafe fn load_stage_u(u: &[Vec2]) -> ([__m256; GROUPS], [__m256; GROUPS]) {
+    let (mut ux, mut uy) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
+    for g in 0..GROUPS {
+        (ux[g], uy[g]) = load_unit_pairs(&u[8 * g..]);
+    }
+    (ux, uy)
+}
+
+/// Store a stage's draws into `out`; a lane whose position rounded onto a
+/// cell edge is finished by the scalar code of its distribution.
+#[inline(always)]
+unsafe fn store_stage<'a>(
+    drawn: &Drawn,
+    ux: &[__m256; GROUPS],
+    uy: &[__m256; GROUPS],
+    dist_of: impl Fn(usize) -> &'a PiecewiseConstant2D,
+    out: &mut [Sample2D],
+) {
+    for g in 0..GROUPS {
+        let o = &mut out[8 * g..8 * g + 8];
+        store_samples(drawn.x[g], drawn.y[g], drawn.pdf[g], o);
+        let on_edge = drawn.on_edge[g];
+        if on_edge != 0 {
+            let (jl, kl) = (lanes_i32(drawn.row[g]), lanes_i32(drawn.column[g]));
+            let (uxl, uyl) = (lanes_f32(ux[g]), lanes_f32(uy[g]));
+            for l in (0..8).filter(|l| on_edge & (1 << l) != 0) {
+                let u = Vec2::new(uxl[l], uyl[l]);
+                o[l] = dist_of(8 * g + l).finish(jl[l] as usize, kl[l] as usize, u);
+            }
+        }
+    }
+}
+
 impl PiecewiseConstant2D {
     /// Whether the lanes can index this table with `i32`.
     pub(super) fn fits_lanes(&self) -> bool {
@@ -82,66 +189,73 @@ impl PiecewiseConstant2D {
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn sample_batch_gather(&self, u: &[Vec2], out: &mut [Sample2D]) {
         let len = u.len().min(out.len());
-        let (u, out) = (&u[..len], &mut out[..len]);
-        let (nx, ny) = (self.nx, self.ny);
-        let (nxf, nyf) = (_mm256_set1_ps(nx as f32), _mm256_set1_ps(ny as f32));
-        let zero = [_mm256_setzero_si256(); GROUPS];
-        let last_row = [_mm256_set1_epi32(ny as i32 - 1); GROUPS];
-        let last_column = [_mm256_set1_epi32(nx as i32 - 1); GROUPS];
-        let mut u_chunks = u.chunks_exact(STAGE);
-        let mut out_chunks = out.chunks_exact_mut(STAGE);
-        for (uc, oc) in (&mut u_chunks).zip(&mut out_chunks) {
-            let (mut ux, mut uy) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
-            for g in 0..GROUPS {
-                (ux[g], uy[g]) = load_unit_pairs(&uc[8 * g..]);
-            }
-            let mut rows = Bracket::start();
-            let step = rows.shared_top(&self.marginal, &uy);
-            rows.lift(self.marginal.as_ptr(), &zero, &last_row, &uy, step);
-            let mut row_start = zero;
-            for g in 0..GROUPS {
-                row_start[g] = _mm256_mullo_epi32(rows.count[g], _mm256_set1_epi32(nx as i32));
-            }
-            let mut columns = Bracket::start();
-            let step = nx.next_power_of_two() / 2;
-            columns.lift(
-                self.conditional.as_ptr(),
-                &row_start,
-                &last_column,
-                &ux,
-                step,
-            );
-            for g in 0..GROUPS {
-                let (j, k) = (rows.count[g], columns.count[g]);
-                let row_mass = _mm256_sub_ps(rows.upper[g], rows.lower[g]);
-                let col_mass = _mm256_sub_ps(columns.upper[g], columns.lower[g]);
-                let dv = _mm256_div_ps(_mm256_sub_ps(uy[g], rows.lower[g]), row_mass);
-                let du = _mm256_div_ps(_mm256_sub_ps(ux[g], columns.lower[g]), col_mass);
-                let (x, x_off) = position(k, clamp_fraction(du), nx);
-                let (y, y_off) = position(j, clamp_fraction(dv), ny);
-                let pdf =
-                    joint_pdf_lanes(_mm256_mul_ps(row_mass, nyf), _mm256_mul_ps(col_mass, nxf));
-                let o = &mut oc[8 * g..8 * g + 8];
-                store_samples(x, y, pdf, o);
-                let on_edge =
-                    _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_or_si256(x_off, y_off)));
-                if on_edge != 0 {
-                    let (jl, kl) = (lanes_i32(j), lanes_i32(k));
-                    let (uxl, uyl) = (lanes_f32(ux[g]), lanes_f32(uy[g]));
-                    for l in (0..8).filter(|l| on_edge & (1 << l) != 0) {
-                        let u = Vec2::new(uxl[l], uyl[l]);
-                        o[l] = self.finish(jl[l] as usize, kl[l] as usize, u);
-                    }
-                }
-            }
+        let tables = Tables {
+            marginal: Shared(self.marginal.as_ptr()),
+            conditional: Shared(self.conditional.as_ptr()),
+            nx: self.nx,
+            ny: self.ny,
+            shared: Some(&self.marginal),
+        };
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let range = k * STAGE..(k + 1) * STAGE;
+            let (ux, uy) = load_stage_u(&u[range.clone()]);
+            let drawn = tables.draw(&ux, &uy);
+            store_stage(&drawn, &ux, &uy, |_| self, &mut out[range]);
         }
-        for (o, &u) in out_chunks
-            .into_remainder()
-            .iter_mut()
-            .zip(u_chunks.remainder())
-        {
-            *o = acdf_core::Distribution2D::sample(self, u);
+        for k in stages * STAGE..len {
+            out[k] = acdf_core::Distribution2D::sample(self, u[k]);
         }
+    }
+
+    /// [`sample_each`](Self::sample_each) in AVX2 lanes, for slices of
+    /// equal length: a stage whose distributions all fit the lanes and
+    /// share one shape is drawn as in
+    /// [`sample_batch_gather`](Self::sample_batch_gather), each lane reading
+    /// its own distribution; other stages and the tail go through the
+    /// scalar stages.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn sample_each_gather(
+        dists: &[&PiecewiseConstant2D],
+        u: &[Vec2],
+        out: &mut [Sample2D],
+    ) {
+        let len = dists.len();
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let range = k * STAGE..(k + 1) * STAGE;
+            let stage = &dists[range.clone()];
+            let (nx, ny) = (stage[0].nx, stage[0].ny);
+            if !stage
+                .iter()
+                .all(|d| d.fits_lanes() && d.nx == nx && d.ny == ny)
+            {
+                let r = range.clone();
+                Self::sample_each_lanes(stage, &u[r.clone()], &mut out[r]);
+                continue;
+            }
+            let mut marginal = [std::ptr::null::<f32>(); STAGE];
+            let mut conditional = [std::ptr::null::<f32>(); STAGE];
+            for (l, d) in stage.iter().enumerate() {
+                marginal[l] = d.marginal.as_ptr();
+                conditional[l] = d.conditional.as_ptr();
+            }
+            let tables = Tables {
+                marginal: PerLane::new(&marginal),
+                conditional: PerLane::new(&conditional),
+                nx,
+                ny,
+                shared: None,
+            };
+            let (ux, uy) = load_stage_u(&u[range.clone()]);
+            let drawn = tables.draw(&ux, &uy);
+            store_stage(&drawn, &ux, &uy, |l| stage[l], &mut out[range]);
+        }
+        let r = stages * STAGE..len;
+        Self::sample_each_lanes(&dists[r.clone()], &u[r.clone()], &mut out[r]);
     }
 }
 
@@ -167,7 +281,7 @@ unsafe fn cell_mass_lanes(cdf: *const f32, start: __m256i, k: __m256i) -> __m256
         start,
         _mm256_max_epi32(_mm256_sub_epi32(k, _mm256_set1_epi32(1)), zero),
     );
-    let (a, b) = gather_pairs(cdf, from);
+    let (a, b) = Shared(cdf).gather_pairs(0, from);
     let first = _mm256_castsi256_ps(first);
     let upper = _mm256_blendv_ps(b, a, first);
     let lower = _mm256_andnot_ps(first, a);
