@@ -67,6 +67,13 @@ fn distribution_2d(c: &mut Criterion) {
             black_box(acc)
         })
     });
+    group.bench_function("pdf_batch", |b| {
+        let mut out = vec![0.0f32; BATCH];
+        b.iter(|| {
+            d.pdf_batch(black_box(&points), &mut out);
+            black_box(&out);
+        })
+    });
     group.bench_function("same_segment_around", |b| {
         let margin = Vec2::splat(1e-4);
         b.iter(|| {

@@ -724,7 +724,7 @@ impl AdaptiveCdf2D {
     /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
     /// of each draw in its own distribution: exactly
     /// `dists[k].sample_and_same_segment(u[k], margin)`. Where the CPU has
-    /// AVX2 the draws go 64 at a time in SIMD lanes, each lane
+    /// AVX2 the draws go 32 at a time in SIMD lanes, each lane
     /// reading its own distribution (`dist/gather.rs`); elsewhere [`LANES`]
     /// at a time in scalar stages (marginal segments, conditional segments,
     /// then positions), so that the searches of different slices overlap.
@@ -823,7 +823,7 @@ impl AdaptiveCdf2D {
     /// `dists[k].pdf(p[k])` for every k (the slices of a batch of shading
     /// points), bit for bit, [`LANES`] at a time in stages (marginal
     /// segments, conditional segments, densities) so that the searches of
-    /// different slices overlap; where the CPU has AVX2, 64 at a time
+    /// different slices overlap; where the CPU has AVX2, 32 at a time
     /// in SIMD lanes, each lane reading its own distribution
     /// (`dist/gather.rs`). Entries beyond the shortest of the three lengths
     /// are left alone.
@@ -905,7 +905,7 @@ impl Distribution2D for AdaptiveCdf2D {
     }
 
     /// The same samples as [`sample`](Distribution2D::sample): where the CPU
-    /// has AVX2, 64 draws at a time in SIMD lanes (`dist/gather.rs`),
+    /// has AVX2, 32 draws at a time in SIMD lanes (`dist/gather.rs`),
     /// elsewhere eight at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
@@ -919,7 +919,7 @@ impl Distribution2D for AdaptiveCdf2D {
     }
 
     /// The same densities as [`pdf`](Distribution2D::pdf), bit for bit:
-    /// where the CPU has AVX2, 64 points at a time in SIMD lanes
+    /// where the CPU has AVX2, 32 points at a time in SIMD lanes
     /// (`dist/gather.rs`), elsewhere one at a time.
     fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]

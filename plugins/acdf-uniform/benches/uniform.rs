@@ -63,6 +63,13 @@ fn distribution(c: &mut Criterion) {
             black_box(acc)
         })
     });
+    group.bench_function("pdf_batch", |b| {
+        let mut out = vec![0.0f32; BATCH];
+        b.iter(|| {
+            d.pdf_batch(black_box(&points), &mut out);
+            black_box(&out);
+        })
+    });
     group.bench_function("build", |b| {
         b.iter_batched(
             || values.clone(),

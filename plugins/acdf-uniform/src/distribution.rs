@@ -23,7 +23,7 @@
 //! a 2D conditional of up to 64 cells is counted by comparing every entry.
 //! Both give exactly the cell of a binary search, so the mapping from u to
 //! x stays monotone. Where the CPU has AVX2, `sample_batch` and `pdf_batch`
-//! run in SIMD lanes instead (`distribution/gather.rs`: 64 draws per stage,
+//! run in SIMD lanes instead (`distribution/gather.rs`: 32 draws per stage,
 //! both searches by binary lifting with gathers); elsewhere `sample_batch`
 //! runs sixteen draws in scalar stages. Both return exactly what `sample`
 //! and `pdf` return.
@@ -656,7 +656,7 @@ impl Distribution2D for PiecewiseConstant2D {
     }
 
     /// The same samples as [`sample`](Distribution2D::sample): where the CPU
-    /// has AVX2, 64 draws at a time in SIMD lanes (`distribution/gather.rs`),
+    /// has AVX2, 32 draws at a time in SIMD lanes (`distribution/gather.rs`),
     /// elsewhere sixteen at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
@@ -768,7 +768,7 @@ impl PiecewiseConstant2D {
     /// Draw `u[k]` from `dists[k]` for every k: the slices of a batch of
     /// shading points, each with its own outgoing direction. The same
     /// samples as [`sample`](Distribution2D::sample) of each. Where the CPU
-    /// has AVX2, 64 draws at a time in SIMD lanes, each lane reading its own
+    /// has AVX2, 32 draws at a time in SIMD lanes, each lane reading its own
     /// slice (`distribution/gather.rs`); elsewhere in scalar stages of
     /// sixteen (rows, then columns, then positions). Either way the loads of
     /// different slices, which are rarely in the nearest cache, overlap.

@@ -25,12 +25,13 @@
 use crate::{Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
 
-/// Groups of eight lanes advanced together: sixty-four draws per stage.
-/// On the 256x32 nickel slice two groups measured 80 M/s, four 118-128,
-/// eight 100-124 and twelve 37-47 (registers spill); with the search of
-/// the marginal's first levels from a register, eight give 124 M/s (best
-/// of 40 runs of 10^6 draws, one thread).
-pub const GROUPS: usize = 8;
+/// Groups of eight lanes advanced together: thirty-two draws per stage.
+/// Four groups keep a stage's state in few enough registers that the spills
+/// stay cheap: on the 256x32 nickel slice four gave 124-135 M/s for the
+/// uniform and 94-98 for the adaptive distribution, eight 96-127 and 65-92,
+/// two 80 for the uniform, twelve under 50 (best of 40 runs of 10^6 draws,
+/// one thread, several runs each).
+pub const GROUPS: usize = 4;
 
 /// Draws per stage, [`GROUPS`] × 8.
 pub const STAGE: usize = 8 * GROUPS;
@@ -486,7 +487,7 @@ mod tests {
         fn shared_search_counts_and_brackets(
             steps in prop::collection::vec(prop_oneof![Just(0.0f32), 0.0f32..1.0], 0..300),
             us in prop::collection::vec(0.0f32..1.0, STAGE),
-            picks in prop::collection::vec(any::<prop::sample::Index>(), 16),
+            picks in prop::collection::vec(any::<prop::sample::Index>(), STAGE / 4),
         ) {
             if !avx2() {
                 return Ok(());
