@@ -620,6 +620,12 @@ impl ThetaOCells {
         }
     }
 
+    /// The bounds -cos θ at the cell edges, ascending, padded with +∞ to a
+    /// multiple of eight.
+    pub(crate) fn bounds(&self) -> &[f32] {
+        &self.negative_cos_bounds
+    }
+
     /// The cell of cos θ_o = z, in [0, n).
     #[inline(always)]
     fn cell(&self, z: f32) -> usize {

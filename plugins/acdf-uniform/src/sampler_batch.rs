@@ -295,8 +295,68 @@ struct OutgoingLanes<'a, D> {
     map: HalfMap,
 }
 
+/// The θ_o cell of every lane's wo (the number of cell bounds at or below
+/// -cos θ_o, as `ThetaOCells::cell` counts them) and the rotation
+/// (cos φ_o, sin φ_o) = (x, y) / sin θ_o, or (1, 0) on the pole, as
+/// `slice_for` computes them: the same IEEE operations, with the lanes as
+/// the inner loop so that the compiler vectorises across them.
+#[inline(always)]
+fn outgoing_cells_generic<D>(
+    bounds: &[f32],
+    lanes: &mut OutgoingLanes<'_, D>,
+    n: usize,
+    cells: &mut [u32; BATCH_CHUNK],
+) {
+    for &b in bounds {
+        for l in 0..n {
+            cells[l] += (b <= -lanes.wo_z[l]) as u32;
+        }
+    }
+    for l in 0..n {
+        let (x, y) = (lanes.wo_x[l], lanes.wo_y[l]);
+        let sin_o = (x * x + y * y).sqrt();
+        let inverse = 1.0 / sin_o;
+        let pole = !(sin_o > 0.0);
+        lanes.rotation_x[l] = if pole { 1.0 } else { x * inverse };
+        lanes.rotation_y[l] = if pole { 0.0 } else { y * inverse };
+    }
+}
+
+/// [`outgoing_cells_generic`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn outgoing_cells_avx2<D>(
+    bounds: &[f32],
+    lanes: &mut OutgoingLanes<'_, D>,
+    n: usize,
+    cells: &mut [u32; BATCH_CHUNK],
+) {
+    outgoing_cells_generic(bounds, lanes, n, cells);
+}
+
+/// The θ_o cells and rotations of a chunk's outgoing directions.
+fn outgoing_cells<D>(
+    bounds: &[f32],
+    lanes: &mut OutgoingLanes<'_, D>,
+    n: usize,
+    cells: &mut [u32; BATCH_CHUNK],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU has just been found to support AVX2 and FMA.
+        unsafe { outgoing_cells_avx2(bounds, lanes, n, cells) };
+        return;
+    }
+    outgoing_cells_generic(bounds, lanes, n, cells);
+}
+
 impl<'a, D: Distribution2D> OutgoingLanes<'a, D> {
-    /// The slices of `wo`, found lane by lane.
+    /// The slices of `wo`: for relative slices (one φ_o cell), the θ_o
+    /// cells and rotations of all lanes in one branch-free pass (SIMD where
+    /// the CPU has AVX2), then each lane's slice; otherwise lane by lane.
     fn find<B: SliceBuilder<Dist = D>>(sampler: &'a TabulatedBrdfSampler<B>, wo: &[Vec3]) -> Self {
         let mut lanes = OutgoingLanes {
             wo_x: [0.0; BATCH_CHUNK],
@@ -307,17 +367,31 @@ impl<'a, D: Distribution2D> OutgoingLanes<'a, D> {
             dist: [None; BATCH_CHUNK],
             map: sampler.half_map,
         };
-        for (l, &wo) in wo.iter().take(BATCH_CHUNK).enumerate() {
+        let n = wo.len().min(BATCH_CHUNK);
+        for (l, &wo) in wo[..n].iter().enumerate() {
             lanes.wo_x[l] = wo.x;
             lanes.wo_y[l] = wo.y;
             lanes.wo_z[l] = wo.z;
-            if !is_valid_outgoing(wo) {
-                continue;
+        }
+        if !sampler.relative_phi {
+            for (l, &wo) in wo[..n].iter().enumerate() {
+                if !is_valid_outgoing(wo) {
+                    continue;
+                }
+                if let Some(slice) = sampler.slice_for(wo) {
+                    lanes.rotation_x[l] = slice.rotation.x;
+                    lanes.rotation_y[l] = slice.rotation.y;
+                    lanes.dist[l] = Some(slice.dist);
+                }
             }
-            if let Some(slice) = sampler.slice_for(wo) {
-                lanes.rotation_x[l] = slice.rotation.x;
-                lanes.rotation_y[l] = slice.rotation.y;
-                lanes.dist[l] = Some(slice.dist);
+            return lanes;
+        }
+        let mut cells = [0u32; BATCH_CHUNK];
+        outgoing_cells(sampler.theta_o_cells.bounds(), &mut lanes, n, &mut cells);
+        let phi_o = sampler.resolution.phi_o;
+        for (l, &wo) in wo[..n].iter().enumerate() {
+            if is_valid_outgoing(wo) {
+                lanes.dist[l] = sampler.slice_at(cells[l] as usize * phi_o).ok();
             }
         }
         lanes
@@ -385,19 +459,31 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
                 }
             }
             let m = dists.len();
-            let mut compact = [Sample2D::default(); BATCH_CHUNK];
-            let mut compact_same = [false; BATCH_CHUNK];
-            self.builder.sample_each_and_same_cell(
-                &dists,
-                &lane_u[..m],
-                Vec2::splat(CELL_MARGIN),
-                &mut compact[..m],
-                &mut compact_same[..m],
-            );
             let mut same = [false; BATCH_CHUNK];
-            for (k, &l) in lane_of[..m].iter().enumerate() {
-                drawn[l] = compact[k];
-                same[l] = compact_same[k];
+            let margin = Vec2::splat(CELL_MARGIN);
+            if m == n {
+                // Every lane has a slice (the usual case): no compaction.
+                self.builder.sample_each_and_same_cell(
+                    &dists,
+                    &uc[..n],
+                    margin,
+                    &mut drawn[..n],
+                    &mut same[..n],
+                );
+            } else {
+                let mut compact = [Sample2D::default(); BATCH_CHUNK];
+                let mut compact_same = [false; BATCH_CHUNK];
+                self.builder.sample_each_and_same_cell(
+                    &dists,
+                    &lane_u[..m],
+                    margin,
+                    &mut compact[..m],
+                    &mut compact_same[..m],
+                );
+                for (k, &l) in lane_of[..m].iter().enumerate() {
+                    drawn[l] = compact[k];
+                    same[l] = compact_same[k];
+                }
             }
             draw_lanes(&lanes, &drawn[..n], &mut draws);
             for (l, w) in wi[..n].iter_mut().enumerate() {

@@ -256,7 +256,10 @@ impl Source for PerLane {
     #[inline(always)]
     unsafe fn gather(&self, g: usize, index: __m256i) -> __m256 {
         let (low, high) = self.addresses(g, index);
-        // Base 0: the indices are the addresses themselves.
+        // Base 0: the indices are the addresses themselves, each inside the
+        // array its lane was given (the caller's contract), so every load
+        // reads memory the caller owns; the gather instruction takes its
+        // addresses from the index lanes whatever pointer is passed.
         let base = std::ptr::null::<f32>();
         join_halves(
             _mm256_i64gather_ps::<1>(base, low),
