@@ -460,26 +460,20 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             }
             let m = dists.len();
             let mut same = [false; BATCH_CHUNK];
-            let margin = Vec2::splat(CELL_MARGIN);
-            if m == n {
-                // Every lane has a slice (the usual case): no compaction.
-                self.builder.sample_each_and_same_cell(
-                    &dists,
-                    &uc[..n],
-                    margin,
-                    &mut drawn[..n],
-                    &mut same[..n],
-                );
+            let mut compact = [Sample2D::default(); BATCH_CHUNK];
+            let mut compact_same = [false; BATCH_CHUNK];
+            // When every lane has a slice (the usual case) the draws go
+            // straight into place, without compaction.
+            let every = m == n;
+            let (lane_u, to, to_same) = if every {
+                (&uc[..n], &mut drawn[..n], &mut same[..n])
             } else {
-                let mut compact = [Sample2D::default(); BATCH_CHUNK];
-                let mut compact_same = [false; BATCH_CHUNK];
-                self.builder.sample_each_and_same_cell(
-                    &dists,
-                    &lane_u[..m],
-                    margin,
-                    &mut compact[..m],
-                    &mut compact_same[..m],
-                );
+                (&lane_u[..m], &mut compact[..m], &mut compact_same[..m])
+            };
+            let margin = Vec2::splat(CELL_MARGIN);
+            self.builder
+                .sample_each_and_same_cell(&dists, lane_u, margin, to, to_same);
+            if !every {
                 for (k, &l) in lane_of[..m].iter().enumerate() {
                     drawn[l] = compact[k];
                     same[l] = compact_same[k];

@@ -366,6 +366,26 @@ pub unsafe fn load_pairs(p: &[Vec2]) -> (__m256, __m256) {
     (pair_order(x), pair_order(y))
 }
 
+/// A stage's [`STAGE`] pairs as x and y lanes, group by group: clamped
+/// with [`clamp_unit_lanes`] when they are uniform numbers (`clamp`), as
+/// they are when they are points.
+///
+/// # Safety
+/// AVX2; `p` holds at least [`STAGE`] pairs.
+#[inline(always)]
+pub unsafe fn load_stage(p: &[Vec2], clamp: bool) -> ([__m256; GROUPS], [__m256; GROUPS]) {
+    let (mut x, mut y) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
+    for g in 0..GROUPS {
+        let (xg, yg) = load_pairs(&p[8 * g..]);
+        (x[g], y[g]) = if clamp {
+            (clamp_unit_lanes(xg), clamp_unit_lanes(yg))
+        } else {
+            (xg, yg)
+        };
+    }
+    (x, y)
+}
+
 /// Lanes 0 1 4 5 2 3 6 7 of `v` (its 64-bit quarters 0, 2, 1, 3).
 #[inline(always)]
 unsafe fn pair_order(v: __m256) -> __m256 {

@@ -18,8 +18,7 @@
 
 use super::AdaptiveCdf2D;
 use acdf_core::search::lanes::{
-    in_unit, lanes_i32, load_pairs, load_unit_pairs, store_samples, Bracket, PerLane, Shared,
-    Source, GROUPS, STAGE,
+    in_unit, lanes_i32, load_stage, store_samples, Bracket, PerLane, Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::search::Baseline;
 use acdf_core::{Sample2D, Vec2, ONE_MINUS_EPSILON};
@@ -425,26 +424,6 @@ impl<S: Source> Tables<'_, S> {
     }
 }
 
-/// Load a stage's uniform pairs, clamped.
-#[inline(always)]
-unsafe fn load_stage_u(u: &[Vec2]) -> ([__m256; GROUPS], [__m256; GROUPS]) {
-    let (mut ux, mut uy) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
-    for g in 0..GROUPS {
-        (ux[g], uy[g]) = load_unit_pairs(&u[8 * g..]);
-    }
-    (ux, uy)
-}
-
-/// Load a stage's points, as they are.
-#[inline(always)]
-unsafe fn load_stage_points(p: &[Vec2]) -> ([__m256; GROUPS], [__m256; GROUPS]) {
-    let (mut x, mut y) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
-    for g in 0..GROUPS {
-        (x[g], y[g]) = load_pairs(&p[8 * g..]);
-    }
-    (x, y)
-}
-
 /// Store a stage's samples and, with `SAME`, its box tests.
 #[inline(always)]
 unsafe fn store_stage<const SAME: bool>(
@@ -492,7 +471,7 @@ impl AdaptiveCdf2D {
         let stages = len / STAGE;
         for k in 0..stages {
             let range = k * STAGE..(k + 1) * STAGE;
-            let (ux, uy) = load_stage_u(&u[range.clone()]);
+            let (ux, uy) = load_stage(&u[range.clone()], true);
             let drawn = tables.draw::<SAME>(&ux, &uy, margin);
             let same = if SAME {
                 &mut same[range.clone()]
@@ -524,14 +503,9 @@ impl AdaptiveCdf2D {
         let tables = Tables::one(self);
         let stages = len / STAGE;
         for k in 0..stages {
-            let (x, y) = load_stage_points(&p[k * STAGE..]);
-            let density = tables.densities(&x, &y);
-            for (g, d) in density.iter().enumerate() {
-                _mm256_storeu_ps(
-                    out[k * STAGE + 8 * g..k * STAGE + 8 * g + 8].as_mut_ptr(),
-                    *d,
-                );
-            }
+            let range = k * STAGE..(k + 1) * STAGE;
+            let (x, y) = load_stage(&p[range.clone()], false);
+            store_densities(&tables.densities(&x, &y), &mut out[range]);
         }
         for k in stages * STAGE..len {
             out[k] = acdf_core::Distribution2D::pdf(self, p[k]);
@@ -555,37 +529,17 @@ impl AdaptiveCdf2D {
         out: &mut [Sample2D],
         same: &mut [bool],
     ) {
-        let len = dists.len();
-        let stages = len / STAGE;
-        for k in 0..stages {
-            let range = k * STAGE..(k + 1) * STAGE;
-            let stage = &dists[range.clone()];
-            if stage.iter().all(|d| d.fits_lanes()) {
-                let tables = Tables::each(stage);
-                let (ux, uy) = load_stage_u(&u[range.clone()]);
-                let drawn = tables.draw::<true>(&ux, &uy, margin);
-                store_stage::<true>(&drawn, &mut out[range.clone()], &mut same[range]);
+        for (k, stage) in dists.chunks(STAGE).enumerate() {
+            let range = k * STAGE..k * STAGE + stage.len();
+            let (u, out, same) = (&u[range.clone()], &mut out[range.clone()], &mut same[range]);
+            if stage.len() == STAGE && stage.iter().all(|d| d.fits_lanes()) {
+                let (ux, uy) = load_stage(u, true);
+                let drawn = Tables::each(stage).draw::<true>(&ux, &uy, margin);
+                store_stage::<true>(&drawn, out, same);
             } else {
-                let r = range.clone();
-                Self::sample_each_lanes(
-                    Baseline,
-                    stage,
-                    &u[r.clone()],
-                    margin,
-                    &mut out[r.clone()],
-                    &mut same[r],
-                );
+                Self::sample_each_lanes(Baseline, stage, u, margin, out, same);
             }
         }
-        let r = stages * STAGE..len;
-        Self::sample_each_lanes(
-            Baseline,
-            &dists[r.clone()],
-            &u[r.clone()],
-            margin,
-            &mut out[r.clone()],
-            &mut same[r],
-        );
     }
 
     /// [`pdf_each`](Self::pdf_each) in AVX2 lanes, for slices of equal
@@ -595,26 +549,23 @@ impl AdaptiveCdf2D {
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn pdf_each_gather(dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
-        let len = dists.len();
-        let stages = len / STAGE;
-        for k in 0..stages {
-            let range = k * STAGE..(k + 1) * STAGE;
-            let stage = &dists[range.clone()];
-            if stage.iter().all(|d| d.fits_lanes()) {
-                let tables = Tables::each(stage);
-                let (x, y) = load_stage_points(&p[range.clone()]);
-                let density = tables.densities(&x, &y);
-                for (g, d) in density.iter().enumerate() {
-                    _mm256_storeu_ps(
-                        out[k * STAGE + 8 * g..k * STAGE + 8 * g + 8].as_mut_ptr(),
-                        *d,
-                    );
-                }
+        for (k, stage) in dists.chunks(STAGE).enumerate() {
+            let range = k * STAGE..k * STAGE + stage.len();
+            let (p, out) = (&p[range.clone()], &mut out[range]);
+            if stage.len() == STAGE && stage.iter().all(|d| d.fits_lanes()) {
+                let (x, y) = load_stage(p, false);
+                store_densities(&Tables::each(stage).densities(&x, &y), out);
             } else {
-                Self::pdf_each_lanes(stage, &p[range.clone()], &mut out[range]);
+                Self::pdf_each_lanes(stage, p, out);
             }
         }
-        let r = stages * STAGE..len;
-        Self::pdf_each_lanes(&dists[r.clone()], &p[r.clone()], &mut out[r]);
+    }
+}
+
+/// Write a stage's densities to `out`.
+#[inline(always)]
+unsafe fn store_densities(density: &[__m256; GROUPS], out: &mut [f32]) {
+    for (g, d) in density.iter().enumerate() {
+        _mm256_storeu_ps(out[8 * g..8 * g + 8].as_mut_ptr(), *d);
     }
 }

@@ -17,8 +17,8 @@
 
 use super::PiecewiseConstant2D;
 use acdf_core::search::lanes::{
-    in_unit, lanes_f32, lanes_i32, load_pairs, load_unit_pairs, store_samples, Bracket, PerLane,
-    Shared, Source, GROUPS, STAGE,
+    in_unit, lanes_f32, lanes_i32, load_pairs, load_stage, store_samples, Bracket, PerLane, Shared,
+    Source, GROUPS, STAGE,
 };
 use acdf_core::{Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
@@ -139,16 +139,6 @@ impl<S: Source> Tables<'_, S> {
     }
 }
 
-/// Load a stage's uniform pairs, clamped.
-#[inline(always)]
-unsafe fn load_stage_u(u: &[Vec2]) -> ([__m256; GROUPS], [__m256; GROUPS]) {
-    let (mut ux, mut uy) = ([_mm256_setzero_ps(); GROUPS], [_mm256_setzero_ps(); GROUPS]);
-    for g in 0..GROUPS {
-        (ux[g], uy[g]) = load_unit_pairs(&u[8 * g..]);
-    }
-    (ux, uy)
-}
-
 /// Store a stage's draws into `out`; a lane whose position rounded onto a
 /// cell edge is finished by the scalar code of its distribution.
 #[inline(always)]
@@ -199,7 +189,7 @@ impl PiecewiseConstant2D {
         let stages = len / STAGE;
         for k in 0..stages {
             let range = k * STAGE..(k + 1) * STAGE;
-            let (ux, uy) = load_stage_u(&u[range.clone()]);
+            let (ux, uy) = load_stage(&u[range.clone()], true);
             let drawn = tables.draw(&ux, &uy);
             store_stage(&drawn, &ux, &uy, |_| self, &mut out[range]);
         }
@@ -223,18 +213,13 @@ impl PiecewiseConstant2D {
         u: &[Vec2],
         out: &mut [Sample2D],
     ) {
-        let len = dists.len();
-        let stages = len / STAGE;
-        for k in 0..stages {
-            let range = k * STAGE..(k + 1) * STAGE;
-            let stage = &dists[range.clone()];
+        for (k, stage) in dists.chunks(STAGE).enumerate() {
+            let range = k * STAGE..k * STAGE + stage.len();
+            let (u, out) = (&u[range.clone()], &mut out[range]);
             let (nx, ny) = (stage[0].nx, stage[0].ny);
-            if !stage
-                .iter()
-                .all(|d| d.fits_lanes() && d.nx == nx && d.ny == ny)
-            {
-                let r = range.clone();
-                Self::sample_each_lanes(stage, &u[r.clone()], &mut out[r]);
+            let fits = |d: &&PiecewiseConstant2D| d.fits_lanes() && d.nx == nx && d.ny == ny;
+            if stage.len() < STAGE || !stage.iter().all(fits) {
+                Self::sample_each_lanes(stage, u, out);
                 continue;
             }
             let mut marginal = [std::ptr::null::<f32>(); STAGE];
@@ -250,12 +235,10 @@ impl PiecewiseConstant2D {
                 ny,
                 shared: None,
             };
-            let (ux, uy) = load_stage_u(&u[range.clone()]);
+            let (ux, uy) = load_stage(u, true);
             let drawn = tables.draw(&ux, &uy);
-            store_stage(&drawn, &ux, &uy, |l| stage[l], &mut out[range]);
+            store_stage(&drawn, &ux, &uy, |l| stage[l], out);
         }
-        let r = stages * STAGE..len;
-        Self::sample_each_lanes(&dists[r.clone()], &u[r.clone()], &mut out[r]);
     }
 }
 
