@@ -65,7 +65,11 @@ pub fn validate_table(what: &'static str, values: &[f32]) -> Result<()> {
 }
 
 /// A sample from a [`Distribution1D`]: the value and its density there.
+///
+/// `repr(C)`: two consecutive `f32` (x, pdf), so that batch paths can write
+/// samples with vector stores.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
 pub struct Sample1D {
     pub x: f32,
     pub pdf: f32,

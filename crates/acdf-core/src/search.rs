@@ -170,8 +170,9 @@ pub fn count_short_or_search<C: WindowCompare>(
 }
 
 /// How a window of [`WINDOW`] entries is compared with a value: bit k of
-/// the mask is set where `window[k] <= v`. One implementation per
-/// instruction set, all giving the same mask.
+/// the mask is set where `window[k] <= v`. [`Baseline`] (SSE2 on x86-64)
+/// is the one implementation; batches on wider SIMD search in lanes
+/// instead ([`lanes`]).
 pub trait WindowCompare: Copy {
     fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32;
 }
@@ -185,63 +186,6 @@ impl WindowCompare for Baseline {
     fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32 {
         at_or_below_mask(window, v)
     }
-}
-
-/// Compares eight entries per instruction with AVX2. A value of this type
-/// exists only once the CPU has been found to support AVX2, so holding one
-/// is what makes its use sound.
-#[cfg(target_arch = "x86_64")]
-#[derive(Debug, Clone, Copy)]
-pub struct Avx2(());
-
-#[cfg(target_arch = "x86_64")]
-impl Avx2 {
-    /// The token, if this CPU supports AVX2.
-    #[inline]
-    pub fn detect() -> Option<Avx2> {
-        std::arch::is_x86_feature_detected!("avx2").then_some(Avx2(()))
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl WindowCompare for Avx2 {
-    #[inline(always)]
-    fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32 {
-        // SAFETY: an `Avx2` exists only where AVX2 was detected.
-        unsafe { at_or_below_mask_avx2(window, v) }
-    }
-}
-
-/// [`at_or_below_mask`] with eight-wide compares: four compares, their
-/// lanes narrowed to bytes by two packs (which work within 128-bit halves,
-/// leaving the 4-entry groups in the order 0, 2, 4, 6, 1, 3, 5, 7), the
-/// groups put back in order, and one byte mask.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-unsafe fn at_or_below_mask_avx2(window: &[f32; WINDOW], v: f32) -> u32 {
-    use std::arch::x86_64::{
-        _mm256_castps_si256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_epi8,
-        _mm256_packs_epi16, _mm256_packs_epi32, _mm256_permutevar8x32_epi32, _mm256_set1_ps,
-        _mm256_setr_epi32, _CMP_LE_OQ,
-    };
-    let v = _mm256_set1_ps(v);
-    // SAFETY: each load reads eight floats inside `window` (offsets 0, 8,
-    // 16, 24 of a 32-float array).
-    let at = |k: usize| unsafe {
-        _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(
-            _mm256_loadu_ps(window[k..].as_ptr()),
-            v,
-        ))
-    };
-    let low = _mm256_packs_epi32(at(0), at(8));
-    let high = _mm256_packs_epi32(at(16), at(24));
-    let bytes = _mm256_packs_epi16(low, high);
-    let ordered = _mm256_permutevar8x32_epi32(bytes, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
-    _mm256_movemask_epi8(ordered) as u32
 }
 
 #[cfg(test)]
@@ -264,10 +208,6 @@ mod tests {
                     .enumerate()
                     .fold(0u32, |m, (k, &e)| m | ((e <= v) as u32) << k);
                 assert_eq!(Baseline.at_or_below_mask(&window, v), expected);
-                #[cfg(target_arch = "x86_64")]
-                if let Some(avx2) = Avx2::detect() {
-                    assert_eq!(avx2.at_or_below_mask(&window, v), expected);
-                }
             }
         }
     }
@@ -296,14 +236,6 @@ mod tests {
             count_short_or_search(Baseline, data, start, len, v),
         ];
         assert_eq!(counts, [expected; 2], "list {list:?} v {v}");
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = Avx2::detect() {
-            let counts = [
-                count_at_or_below(avx2, data, start, len, [v])[0],
-                count_short_or_search(avx2, data, start, len, v),
-            ];
-            assert_eq!(counts, [expected; 2], "list {list:?} v {v}");
-        }
     }
 
     /// The probes to compare at: every entry, its neighbours, the ends, NaN.

@@ -4,8 +4,6 @@ use crate::curve::{
     cdf_points, prefix_sums, push_vertices, segment_samples, Curve, Running, Segment,
 };
 use crate::simplify::{validate_tolerance, ErrorBound, Simplifier};
-#[cfg(target_arch = "x86_64")]
-use acdf_core::search::Avx2;
 use acdf_core::search::{Baseline, WindowCompare};
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
@@ -189,13 +187,15 @@ impl Distribution1D for AdaptiveCdf1D {
         std::mem::size_of_val(&*self.vertices)
     }
 
-    /// The same samples as [`sample`](Distribution1D::sample), eight at a
-    /// time (see [`AdaptiveCdf2D::sample_batch`]).
+    /// The same samples as [`sample`](Distribution1D::sample): where the CPU
+    /// has AVX2, 32 at a time in SIMD lanes (`dist/gather.rs`), elsewhere
+    /// eight at a time in scalar stages.
     fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = Avx2::detect() {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { self.sample_batch_avx2(avx2, u, out) };
+        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
+            // SAFETY: the CPU has just been found to support AVX2, and the
+            // curve fits the lanes.
+            unsafe { self.sample_batch_gather(u, out) };
             return;
         }
         self.sample_batch_lanes(Baseline, u, out);
@@ -203,16 +203,6 @@ impl Distribution1D for AdaptiveCdf1D {
 }
 
 impl AdaptiveCdf1D {
-    /// [`sample_batch_lanes`](Self::sample_batch_lanes) compiled for AVX2.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn sample_batch_avx2(&self, avx2: Avx2, u: &[f32], out: &mut [Sample1D]) {
-        self.sample_batch_lanes(avx2, u, out);
-    }
-
     /// The same samples as [`sample`](Distribution1D::sample), [`LANES`] at
     /// a time: their segments by one search stepping all lanes together,
     /// then their positions and densities as SIMD arithmetic.
@@ -1307,6 +1297,10 @@ mod fast_sampling_tests {
             for (o, &u) in out.iter().zip(&u) {
                 assert_eq!(*o, d.sample(u));
             }
+            // The staged scalar path, which CPUs without AVX2 take.
+            let mut staged = vec![Sample1D::default(); u.len()];
+            d.sample_batch_lanes(Baseline, &u, &mut staged);
+            assert_eq!(staged, out);
         }
     }
 }

@@ -22,7 +22,7 @@
 // group number; iterator chains over three or four arrays would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use crate::{Sample2D, Vec2, ONE_MINUS_EPSILON};
+use crate::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
 
 /// Groups of eight lanes advanced together: thirty-two draws per stage.
@@ -419,6 +419,22 @@ pub unsafe fn store_samples(x: __m256, y: __m256, pdf: __m256, out: &mut [Sample
     );
 }
 
+/// Write eight 1D samples (x, pdf) to `out[0..8]` as two 8-float stores.
+///
+/// # Safety
+/// AVX2; `out` holds at least eight samples.
+#[inline(always)]
+pub unsafe fn store_samples_1d(x: __m256, pdf: __m256, out: &mut [Sample1D]) {
+    assert!(out.len() >= 8);
+    // Sample1D is `repr(C)`: two consecutive f32.
+    let p = out.as_mut_ptr() as *mut f32;
+    // Unpacking gives the pairs of lanes 0 1 | 4 5 and 2 3 | 6 7; the
+    // 128-bit halves are then put in order.
+    let (low, high) = (_mm256_unpacklo_ps(x, pdf), _mm256_unpackhi_ps(x, pdf));
+    _mm256_storeu_ps(p, _mm256_permute2f128_ps::<0x20>(low, high));
+    _mm256_storeu_ps(p.add(8), _mm256_permute2f128_ps::<0x31>(low, high));
+}
+
 /// The lanes `order` of each of three registers.
 #[inline(always)]
 unsafe fn permute3(x: __m256, y: __m256, z: __m256, order: [i32; 8]) -> (__m256, __m256, __m256) {
@@ -696,5 +712,33 @@ mod tests {
             );
         }
         assert_eq!(out[8], Sample2D::default());
+        let mut out = vec![Sample1D::default(); 9];
+        // SAFETY: AVX2 was found above; `out` holds eight samples.
+        unsafe {
+            let lane = |base: f32| {
+                _mm256_setr_ps(
+                    base,
+                    base + 1.0,
+                    base + 2.0,
+                    base + 3.0,
+                    base + 4.0,
+                    base + 5.0,
+                    base + 6.0,
+                    base + 7.0,
+                )
+            };
+            store_samples_1d(lane(0.0), lane(10.0), &mut out);
+        }
+        for (l, s) in out.iter().take(8).enumerate() {
+            let l = l as f32;
+            assert_eq!(
+                *s,
+                Sample1D {
+                    x: l,
+                    pdf: 10.0 + l
+                }
+            );
+        }
+        assert_eq!(out[8], Sample1D::default());
     }
 }

@@ -16,12 +16,13 @@
 // group number; iterator chains over three or four arrays would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use super::AdaptiveCdf2D;
+use super::{AdaptiveCdf1D, AdaptiveCdf2D};
 use acdf_core::search::lanes::{
-    in_unit, lanes_i32, load_stage, store_samples, Bracket, PerLane, Shared, Source, GROUPS, STAGE,
+    clamp_unit_lanes, in_unit, lanes_i32, load_stage, store_samples, store_samples_1d, Bracket,
+    PerLane, Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::search::Baseline;
-use acdf_core::{Sample2D, Vec2, ONE_MINUS_EPSILON};
+use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
 
 /// The ends of the drawn segment of every lane: positions x_i, x_{i+1} and
@@ -567,5 +568,56 @@ impl AdaptiveCdf2D {
 unsafe fn store_densities(density: &[__m256; GROUPS], out: &mut [f32]) {
     for (g, d) in density.iter().enumerate() {
         _mm256_storeu_ps(out[8 * g..8 * g + 8].as_mut_ptr(), *d);
+    }
+}
+
+impl AdaptiveCdf1D {
+    /// Whether the lanes path applies: two vertices or more, indexable by
+    /// `i32` lanes.
+    pub(super) fn fits_lanes(&self) -> bool {
+        self.vertices.len() >= 4 && self.vertices.len() <= i32::MAX as usize
+    }
+
+    /// The same samples as `sample`, [`STAGE`] at a time in AVX2 lanes:
+    /// the segment search as the 2D marginal's, then
+    /// `curve::segment_samples` in lanes; the tail one by one.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2, and [`fits_lanes`](Self::fits_lanes)
+    /// must hold.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn sample_batch_gather(&self, u: &[f32], out: &mut [Sample1D]) {
+        let len = u.len().min(out.len());
+        let m = self.vertices.len() / 2;
+        // The CDF values c_1, ..., c_{m-1} (the last is 1).
+        let run = &self.vertices[m + 1..];
+        let zero = [_mm256_setzero_si256(); GROUPS];
+        let last = [_mm256_set1_epi32(m as i32 - 2); GROUPS];
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let range = k * STAGE..(k + 1) * STAGE;
+            let (u, out) = (&u[range.clone()], &mut out[range]);
+            let mut v = [_mm256_setzero_ps(); GROUPS];
+            for g in 0..GROUPS {
+                v[g] = clamp_unit_lanes(_mm256_loadu_ps(u[8 * g..8 * g + 8].as_ptr()));
+            }
+            let mut segments = Bracket::start();
+            let step = segments.shared_top(run, &v);
+            segments.lift(&Shared(run.as_ptr()), &zero, &last, &v, step);
+            for g in 0..GROUPS {
+                let (x0, x1) = Shared(self.vertices.as_ptr()).gather_pairs(g, segments.count[g]);
+                let segment = SegmentLanes {
+                    x0,
+                    x1,
+                    c0: segments.lower[g],
+                    c1: segments.upper[g],
+                };
+                let (x, pdf) = segment_samples_lanes(segment, v[g]);
+                store_samples_1d(x, pdf, &mut out[8 * g..8 * g + 8]);
+            }
+        }
+        for k in stages * STAGE..len {
+            out[k] = acdf_core::Distribution1D::sample(self, u[k]);
+        }
     }
 }

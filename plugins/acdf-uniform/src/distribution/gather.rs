@@ -15,12 +15,12 @@
 // group number; iterator chains over three or four arrays would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use super::PiecewiseConstant2D;
+use super::{PiecewiseConstant1D, PiecewiseConstant2D};
 use acdf_core::search::lanes::{
-    in_unit, lanes_f32, lanes_i32, load_pairs, load_stage, store_samples, Bracket, PerLane, Shared,
-    Source, GROUPS, STAGE,
+    clamp_unit_lanes, in_unit, lanes_f32, lanes_i32, load_pairs, load_stage, store_samples,
+    store_samples_1d, Bracket, PerLane, Shared, Source, GROUPS, STAGE,
 };
-use acdf_core::{Sample2D, Vec2, ONE_MINUS_EPSILON};
+use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
 
 /// `f32::clamp(d, 0, 1 - ε/2)` in lanes, for d not NaN.
@@ -312,6 +312,62 @@ impl PiecewiseConstant2D {
             .zip(p_chunks.remainder())
         {
             *o = acdf_core::Distribution2D::pdf(self, p);
+        }
+    }
+}
+
+impl PiecewiseConstant1D {
+    /// Whether the lanes can index this CDF with `i32`.
+    pub(super) fn fits_lanes(&self) -> bool {
+        self.cdf.len() <= i32::MAX as usize
+    }
+
+    /// The same samples as `sample`, [`STAGE`] at a time in AVX2 lanes:
+    /// the search as the 2D marginal's (first four steps from registers,
+    /// the rest gathers, the cell's edges with the count), then the
+    /// arithmetic of `finish` in the same lanes; a draw that rounds onto a
+    /// cell edge is finished by the scalar code, and the tail drawn one by
+    /// one.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2, and [`fits_lanes`](Self::fits_lanes)
+    /// must hold.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn sample_batch_gather(&self, u: &[f32], out: &mut [Sample1D]) {
+        let len = u.len().min(out.len());
+        let n = self.cdf.len();
+        let cdf = Shared(self.cdf.as_ptr());
+        let zero = [_mm256_setzero_si256(); GROUPS];
+        let last = [_mm256_set1_epi32(n as i32 - 1); GROUPS];
+        let stages = len / STAGE;
+        for k in 0..stages {
+            let range = k * STAGE..(k + 1) * STAGE;
+            let (u, out) = (&u[range.clone()], &mut out[range]);
+            let mut v = [_mm256_setzero_ps(); GROUPS];
+            for g in 0..GROUPS {
+                v[g] = clamp_unit_lanes(_mm256_loadu_ps(u[8 * g..8 * g + 8].as_ptr()));
+            }
+            let mut cells = Bracket::start();
+            let step = cells.shared_top(&self.cdf, &v);
+            cells.lift(&cdf, &zero, &last, &v, step);
+            for g in 0..GROUPS {
+                let mass = _mm256_sub_ps(cells.upper[g], cells.lower[g]);
+                let du = _mm256_div_ps(_mm256_sub_ps(v[g], cells.lower[g]), mass);
+                let (x, off) = position(cells.count[g], clamp_fraction(du), n);
+                let pdf = _mm256_mul_ps(mass, _mm256_set1_ps(n as f32));
+                let o = &mut out[8 * g..8 * g + 8];
+                store_samples_1d(x, pdf, o);
+                let on_edge = _mm256_movemask_ps(_mm256_castsi256_ps(off));
+                if on_edge != 0 {
+                    let (kl, vl) = (lanes_i32(cells.count[g]), lanes_f32(v[g]));
+                    for l in (0..8).filter(|l| on_edge & (1 << l) != 0) {
+                        o[l] = self.finish(kl[l] as usize, vl[l]);
+                    }
+                }
+            }
+        }
+        for k in stages * STAGE..len {
+            out[k] = acdf_core::Distribution1D::sample(self, u[k]);
         }
     }
 }
