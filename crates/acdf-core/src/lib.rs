@@ -4,7 +4,8 @@
 //! (`Brdf`); the geometry of the local shading frame, spherical and
 //! Rusinkiewicz half/difference coordinates; the warps shared by several
 //! samplers; the hot-path helpers every sampler uses (polynomial
-//! trigonometry in `fast`, branch-free sorted-list searches in `search`);
+//! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
+//! their SIMD-lane form for batches in `search::lanes`);
 //! and the one error type. It holds no sampler and no data format,
 //! so that plug-ins and material readers depend only on this small crate and
 //! never on each other.
