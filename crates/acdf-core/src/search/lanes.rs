@@ -1,5 +1,6 @@
 //! The inverse-CDF search for many draws at once, in 8-wide AVX2 lanes:
-//! the batch paths of the 2D distributions use it.
+//! the batch paths of the distributions (and through them the samplers')
+//! use it.
 //!
 //! A scalar draw is a chain of dependent loads with bookkeeping between
 //! them. Here eight draws share every instruction, and [`GROUPS`] groups of
@@ -28,9 +29,9 @@ use std::arch::x86_64::*;
 /// Groups of eight lanes advanced together: thirty-two draws per stage.
 /// Four groups keep a stage's state in few enough registers that the spills
 /// stay cheap: on the 256x32 nickel slice four gave 124-135 M/s for the
-/// uniform and 94-98 for the adaptive distribution, eight 96-127 and 65-92,
-/// two 80 for the uniform, twelve under 50 (best of 40 runs of 10^6 draws,
-/// one thread, several runs each).
+/// uniform and 94-98 for the adaptive distribution, eight 96-127 and 65-92
+/// (best of 40 runs of 10^6 draws, one thread, several runs each); in a
+/// first version of the search, two groups gave 80 M/s and twelve under 50.
 pub const GROUPS: usize = 4;
 
 /// Draws per stage, [`GROUPS`] × 8.
@@ -336,17 +337,6 @@ pub unsafe fn in_unit(v: __m256) -> __m256 {
         _mm256_cmp_ps::<_CMP_GE_OQ>(v, _mm256_setzero_ps()),
         _mm256_cmp_ps::<_CMP_LT_OQ>(v, _mm256_set1_ps(1.0)),
     )
-}
-
-/// Eight pairs `u[0..8]` as clamped x and y lanes (see
-/// [`clamp_unit_lanes`]), lane l holding pair l.
-///
-/// # Safety
-/// AVX2; `u` holds at least eight pairs.
-#[inline(always)]
-pub unsafe fn load_unit_pairs(u: &[Vec2]) -> (__m256, __m256) {
-    let (x, y) = load_pairs(u);
-    (clamp_unit_lanes(x), clamp_unit_lanes(y))
 }
 
 /// Eight points `p[0..8]` as x and y lanes, lane l holding point l.
@@ -669,7 +659,8 @@ mod tests {
             .collect();
         // SAFETY: AVX2 was found above.
         let (x, y) = unsafe {
-            let (x, y) = load_unit_pairs(&pairs);
+            let (x, y) = load_pairs(&pairs);
+            let (x, y) = (clamp_unit_lanes(x), clamp_unit_lanes(y));
             (lanes_f32(x), lanes_f32(y))
         };
         for (l, p) in pairs.iter().enumerate() {

@@ -18,8 +18,8 @@
 
 use super::{AdaptiveCdf1D, AdaptiveCdf2D};
 use acdf_core::search::lanes::{
-    clamp_unit_lanes, in_unit, lanes_i32, load_stage, store_samples, store_samples_1d, Bracket,
-    PerLane, Shared, Source, GROUPS, STAGE,
+    clamp_unit_lanes, in_unit, join_halves, lanes_i32, load_stage, store_samples, store_samples_1d,
+    Bracket, PerLane, Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::search::Baseline;
 use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
@@ -42,12 +42,6 @@ unsafe fn widen(v: __m256) -> (__m256d, __m256d) {
         _mm256_cvtps_pd(_mm256_castps256_ps128(v)),
         _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(v)),
     )
-}
-
-/// Two halves of four lanes back in one register.
-#[inline(always)]
-unsafe fn join(low: __m128, high: __m128) -> __m256 {
-    _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(low), high)
 }
 
 /// The f64 part of `curve::segment_samples` for four lanes: the position
@@ -81,7 +75,7 @@ unsafe fn segment_samples_lanes(s: SegmentLanes, u: __m256) -> (__m256, __m256) 
     let (x0, x1, c0, c1, uu) = (widen(s.x0), widen(s.x1), widen(s.c0), widen(s.c1), widen(u));
     let (x_lo, pdf_lo) = segment_half(x0.0, x1.0, c0.0, c1.0, uu.0);
     let (x_hi, pdf_hi) = segment_half(x0.1, x1.1, c0.1, c1.1, uu.1);
-    let mut x = join(x_lo, x_hi);
+    let mut x = join_halves(x_lo, x_hi);
     let below_x1 = _mm256_castsi256_ps(_mm256_sub_epi32(
         _mm256_castps_si256(s.x1),
         _mm256_set1_epi32(1),
@@ -90,7 +84,7 @@ unsafe fn segment_samples_lanes(s: SegmentLanes, u: __m256) -> (__m256, __m256) 
     x = _mm256_blendv_ps(x, below_x1, _mm256_cmp_ps::<_CMP_GT_OQ>(x, below_x1));
     let cap = _mm256_set1_ps(ONE_MINUS_EPSILON);
     x = _mm256_blendv_ps(x, cap, _mm256_cmp_ps::<_CMP_GT_OQ>(x, cap));
-    (x, join(pdf_lo, pdf_hi))
+    (x, join_halves(pdf_lo, pdf_hi))
 }
 
 /// `curve::segment_density` for four lanes: (c_{i+1} - c_i) /
@@ -104,7 +98,7 @@ unsafe fn density_half(x0: __m256d, x1: __m256d, c0: __m256d, c1: __m256d) -> __
 #[inline(always)]
 unsafe fn segment_density_lanes(s: SegmentLanes) -> __m256 {
     let (x0, x1, c0, c1) = (widen(s.x0), widen(s.x1), widen(s.c0), widen(s.c1));
-    join(
+    join_halves(
         density_half(x0.0, x1.0, c0.0, c1.0),
         density_half(x0.1, x1.1, c0.1, c1.1),
     )
