@@ -1,10 +1,13 @@
-//! `PiecewiseConstant2D::sample_batch` in AVX2 lanes: both searches by
-//! [`acdf_core::search::lanes`], the final arithmetic in the same lanes.
+//! The AVX2 batch paths of the piecewise-constant distributions:
+//! `PiecewiseConstant2D::sample_batch`, `sample_each` and `pdf_batch`, and
+//! `PiecewiseConstant1D::sample_batch`. The searches are those of
+//! [`acdf_core::search::lanes`], the final arithmetic runs in the same lanes.
 //!
-//! The marginal is one list shared by every draw, so its first four search
-//! steps come from registers; each draw's conditional is its own list,
-//! searched with gathers. log2(ny) - 4 + log2(nx) gathers find both cells
-//! and their edges (four and five at 256x32).
+//! In a batch the marginal is one list shared by every draw, so its first
+//! four search steps come from registers; each draw's conditional is its own
+//! list, searched with gathers. log2(ny) - 4 + log2(nx) gathers find both
+//! cells and their edges (four and five at 256x32). In `sample_each` every
+//! lane reads its own slice, and the marginal is searched with gathers too.
 //!
 //! The arithmetic is the same IEEE operations in the same order as
 //! `PiecewiseConstant2D::finish`, so the samples are bit-identical to
