@@ -1,16 +1,22 @@
-//! `AdaptiveCdf2D::sample_batch`, the batch with the drawn-segment box test,
-//! and `pdf_batch`, in AVX2 lanes: both segment searches by
-//! [`acdf_core::search::lanes`], the position and density in the same lanes.
+//! The AVX2 batch paths of the adaptive distributions:
+//! `AdaptiveCdf2D::sample_batch` (with or without the drawn-segment box
+//! test), `pdf_batch`, `sample_each_and_same_segment` and `pdf_each`, and
+//! `AdaptiveCdf1D::sample_batch`. The segment searches are those of
+//! [`acdf_core::search::lanes`], the positions and densities run in the same
+//! lanes.
 //!
-//! The marginal curve is shared by every draw, so its first four search
-//! steps come from registers. Each draw's conditional is its own short
-//! list, searched with gathers for as many steps as the longest conditional
-//! in the stage needs. The searches bracket u by the segment's CDF values;
-//! two more gathers per curve read its positions.
+//! In a batch the marginal curve is shared by every draw, so its first four
+//! search steps come from registers; in the `_each` forms every lane reads
+//! its own distribution and all steps are gathers. Each draw's conditional
+//! is its own short list, searched for as many steps as the longest
+//! conditional in the stage needs. The searches bracket u by the segment's
+//! CDF values (or x by its positions, for densities); one paired gather per
+//! curve reads the other two ends.
 //!
-//! The arithmetic is that of `curve::segment_samples`, operation for
-//! operation (the differences and the quotient in f64, the clamps as
-//! selects), so the samples are bit-identical to `sample`.
+//! The arithmetic is that of `curve::segment_samples` and
+//! `curve::segment_density`, operation for operation (the differences and
+//! the quotients in f64, the clamps as selects), so the results are
+//! bit-identical to `sample` and `pdf`.
 
 // The loops over groups index several parallel arrays of registers by the
 // group number; iterator chains over three or four arrays would hide that.
