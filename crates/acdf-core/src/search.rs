@@ -37,8 +37,7 @@ pub const WINDOW: usize = 32;
 /// depends on `len` only. The lanes thus step together, and their
 /// independent loads overlap.
 #[inline(always)]
-pub fn count_at_or_below<C: WindowCompare, const L: usize>(
-    cmp: C,
+pub fn count_at_or_below<const L: usize>(
     data: &[f32],
     start: usize,
     len: usize,
@@ -60,7 +59,7 @@ pub fn count_at_or_below<C: WindowCompare, const L: usize>(
     for (lo, &v) in lo.iter_mut().zip(&v) {
         *lo = *lo - start
             + if stop == WINDOW {
-                count_window(cmp, data, *lo, n, v)
+                count_window(data, *lo, n, v)
             } else {
                 count_few(data, *lo, n, v)
             };
@@ -98,20 +97,14 @@ fn count_few(data: &[f32], start: usize, n: usize, v: f32) -> usize {
 /// when it would run past it. No loop whose trip count changes from draw to
 /// draw, no data-dependent branch.
 #[inline(always)]
-pub fn count_window<C: WindowCompare>(
-    cmp: C,
-    data: &[f32],
-    start: usize,
-    len: usize,
-    v: f32,
-) -> usize {
+pub fn count_window(data: &[f32], start: usize, len: usize, v: f32) -> usize {
     let first = start.min(data.len() - WINDOW);
     let window: &[f32; WINDOW] = data[first..first + WINDOW]
         .try_into()
         .expect("a window of WINDOW entries");
     // A u64 so that the shift (at most WINDOW, for an empty list at the very
     // end) is defined.
-    let mask = u64::from(cmp.at_or_below_mask(window, v)) >> (start - first);
+    let mask = u64::from(at_or_below_mask(window, v)) >> (start - first);
     (mask.trailing_ones() as usize).min(len)
 }
 
@@ -155,36 +148,11 @@ fn at_or_below_mask(window: &[f32; WINDOW], v: f32) -> u32 {
 /// that are `<= v`: [`count_window`] for a short list, else
 /// [`count_at_or_below`].
 #[inline(always)]
-pub fn count_short_or_search<C: WindowCompare>(
-    cmp: C,
-    data: &[f32],
-    start: usize,
-    len: usize,
-    v: f32,
-) -> usize {
+pub fn count_short_or_search(data: &[f32], start: usize, len: usize, v: f32) -> usize {
     if len <= WINDOW && data.len() >= WINDOW {
-        count_window(cmp, data, start, len, v)
+        count_window(data, start, len, v)
     } else {
-        count_at_or_below(cmp, data, start, len, [v])[0]
-    }
-}
-
-/// How a window of [`WINDOW`] entries is compared with a value: bit k of
-/// the mask is set where `window[k] <= v`. [`Baseline`] (SSE2 on x86-64)
-/// is the one implementation; batches on wider SIMD search in lanes
-/// instead ([`lanes`]).
-pub trait WindowCompare: Copy {
-    fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32;
-}
-
-/// Compares with the instructions every target of the build has.
-#[derive(Debug, Clone, Copy)]
-pub struct Baseline;
-
-impl WindowCompare for Baseline {
-    #[inline(always)]
-    fn at_or_below_mask(self, window: &[f32; WINDOW], v: f32) -> u32 {
-        at_or_below_mask(window, v)
+        count_at_or_below(data, start, len, [v])[0]
     }
 }
 
@@ -207,7 +175,7 @@ mod tests {
                     .iter()
                     .enumerate()
                     .fold(0u32, |m, (k, &e)| m | ((e <= v) as u32) << k);
-                assert_eq!(Baseline.at_or_below_mask(&window, v), expected);
+                assert_eq!(at_or_below_mask(&window, v), expected);
             }
         }
     }
@@ -228,12 +196,12 @@ mod tests {
         values
     }
 
-    /// Every search, with every compare this CPU has, counts `expected`.
+    /// Both searches count `expected`.
     fn check(data: &[f32], start: usize, len: usize, v: f32, expected: usize) {
         let list = &data[start..start + len];
         let counts = [
-            count_at_or_below(Baseline, data, start, len, [v])[0],
-            count_short_or_search(Baseline, data, start, len, v),
+            count_at_or_below(data, start, len, [v])[0],
+            count_short_or_search(data, start, len, v),
         ];
         assert_eq!(counts, [expected; 2], "list {list:?} v {v}");
     }
@@ -277,7 +245,7 @@ mod tests {
                 for v in probes(&list) {
                     let expected = plain(&list, v);
                     check(&data, 5, len, v, expected);
-                    let lanes = count_at_or_below(Baseline, &data, 5, len, [v, 0.25, -1.0, 7.0]);
+                    let lanes = count_at_or_below(&data, 5, len, [v, 0.25, -1.0, 7.0]);
                     assert_eq!(lanes, [expected, plain(&list, 0.25), 0, len]);
                 }
             }

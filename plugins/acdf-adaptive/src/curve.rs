@@ -15,7 +15,7 @@
 //! the one function `density_of`, so the pdf returned with a sample is
 //! bit-for-bit the pdf evaluated at that sample.
 
-use acdf_core::search::{count_at_or_below, count_short_or_search, Baseline, WindowCompare};
+use acdf_core::search::{count_at_or_below, count_short_or_search};
 use acdf_core::{clamp_unit, Sample1D, ONE_MINUS_EPSILON};
 
 /// The largest f32 strictly below `v` (for v > 0 finite).
@@ -111,7 +111,7 @@ impl<'a> Curve<'a> {
     /// in [0, m - 2].
     #[inline(always)]
     pub fn segment_of(&self, x: f32) -> usize {
-        count_short_or_search(Baseline, self.data, self.start + 1, self.len - 2, x)
+        count_short_or_search(self.data, self.start + 1, self.len - 2, x)
     }
 
     /// The segment i with c_i <= u < c_{i+1} for u in [0, 1) (a zero-mass
@@ -120,24 +120,14 @@ impl<'a> Curve<'a> {
     /// below u, since c_0 = 0 <= u < 1 = c_{m-1}.
     #[inline(always)]
     pub fn segment_of_u(&self, u: f32) -> usize {
-        self.segment_of_u_with(Baseline, u)
-    }
-
-    /// [`segment_of_u`](Self::segment_of_u), comparing with `cmp`.
-    #[inline(always)]
-    pub fn segment_of_u_with<C: WindowCompare>(&self, cmp: C, u: f32) -> usize {
-        count_short_or_search(cmp, self.data, self.start + self.len + 1, self.len - 2, u)
+        count_short_or_search(self.data, self.start + self.len + 1, self.len - 2, u)
     }
 
     /// [`segment_of_u`](Self::segment_of_u) for L values of u at once, by the
     /// four-way search (the lanes' loads overlap).
     #[inline(always)]
-    pub fn segments_of_u<C: WindowCompare, const L: usize>(
-        &self,
-        cmp: C,
-        u: [f32; L],
-    ) -> [usize; L] {
-        count_at_or_below(cmp, self.data, self.start + self.len + 1, self.len - 2, u)
+    pub fn segments_of_u<const L: usize>(&self, u: [f32; L]) -> [usize; L] {
+        count_at_or_below(self.data, self.start + self.len + 1, self.len - 2, u)
     }
 
     /// x = P^{-1}(u), the segment i it lies in and that segment's ends (u

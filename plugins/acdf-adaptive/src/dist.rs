@@ -4,7 +4,6 @@ use crate::curve::{
     cdf_points, prefix_sums, push_vertices, segment_samples, Curve, Running, Segment,
 };
 use crate::simplify::{validate_tolerance, ErrorBound, Simplifier};
-use acdf_core::search::{Baseline, WindowCompare};
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
     Vec2,
@@ -198,7 +197,7 @@ impl Distribution1D for AdaptiveCdf1D {
             unsafe { self.sample_batch_gather(u, out) };
             return;
         }
-        self.sample_batch_lanes(Baseline, u, out);
+        self.sample_batch_lanes(u, out);
     }
 }
 
@@ -207,7 +206,7 @@ impl AdaptiveCdf1D {
     /// a time: their segments by one search stepping all lanes together,
     /// then their positions and densities as SIMD arithmetic.
     #[inline(always)]
-    fn sample_batch_lanes<C: WindowCompare>(&self, cmp: C, u: &[f32], out: &mut [Sample1D]) {
+    fn sample_batch_lanes(&self, u: &[f32], out: &mut [Sample1D]) {
         let curve = self.curve();
         let len = u.len().min(out.len());
         let (u, out) = (&u[..len], &mut out[..len]);
@@ -221,7 +220,7 @@ impl AdaptiveCdf1D {
         let mut out_chunks = out[..lanes].chunks_exact_mut(LANES);
         for (uc, oc) in (&mut u_chunks).zip(&mut out_chunks) {
             let ul: [f32; LANES] = std::array::from_fn(|l| clamp_unit(uc[l]));
-            let i = curve.segments_of_u(cmp, ul);
+            let i = curve.segments_of_u(ul);
             let seg = i.map(|i| curve.segment(i));
             let (x, pdf) = segment_samples(&seg, &ul);
             for (l, o) in oc.iter_mut().enumerate() {
@@ -621,7 +620,7 @@ impl AdaptiveCdf2D {
             unsafe { self.sample_batch_gather::<true>(u, out, margin, same) };
             return;
         }
-        self.sample_batch_lanes::<_, true>(Baseline, u, out, margin, same);
+        self.sample_batch_lanes::<true>(u, out, margin, same);
     }
 
     /// The same samples as [`sample`](Distribution2D::sample), [`LANES`]
@@ -633,9 +632,8 @@ impl AdaptiveCdf2D {
     /// With `SAME`, also the box test of every draw against `margin` into
     /// `same` (which must be as long as `out`), from the drawn segments.
     #[inline(always)]
-    fn sample_batch_lanes<C: WindowCompare, const SAME: bool>(
+    fn sample_batch_lanes<const SAME: bool>(
         &self,
-        cmp: C,
         u: &[Vec2],
         out: &mut [Sample2D],
         margin: Vec2,
@@ -656,7 +654,7 @@ impl AdaptiveCdf2D {
                 *x = clamp_unit(u.x);
                 *y = clamp_unit(u.y);
             }
-            let j = marginal.segments_of_u(cmp, uy);
+            let j = marginal.segments_of_u(uy);
             let mut seg = [Segment::UNIFORM; LANES];
             for (s, &j) in seg.iter_mut().zip(&j) {
                 *s = marginal.segment(j);
@@ -668,7 +666,7 @@ impl AdaptiveCdf2D {
                 *s = if c.is_uniform() {
                     Segment::UNIFORM
                 } else {
-                    c.segment(c.segment_of_u_with(cmp, u))
+                    c.segment(c.segment_of_u(u))
                 };
             }
             let sx = segment_samples(&seg, &ux);
@@ -734,15 +732,14 @@ impl AdaptiveCdf2D {
             unsafe { Self::sample_each_gather(dists, u, margin, out, same) };
             return;
         }
-        Self::sample_each_lanes(Baseline, dists, u, margin, out, same);
+        Self::sample_each_lanes(dists, u, margin, out, same);
     }
 
     /// The stages of
     /// [`sample_each_and_same_segment`](Self::sample_each_and_same_segment),
     /// for slices of equal length.
     #[inline(always)]
-    fn sample_each_lanes<C: WindowCompare>(
-        cmp: C,
+    fn sample_each_lanes(
         dists: &[&AdaptiveCdf2D],
         u: &[Vec2],
         margin: Vec2,
@@ -756,11 +753,11 @@ impl AdaptiveCdf2D {
         // The segment u falls in, with its index (the uniform stand-in's one
         // segment for a curve of fewer than two vertices).
         #[inline(always)]
-        fn drawn_segment<C: WindowCompare>(cmp: C, curve: Curve<'_>, u: f32) -> (usize, Segment) {
+        fn drawn_segment(curve: Curve<'_>, u: f32) -> (usize, Segment) {
             if curve.is_uniform() {
                 (0, Segment::UNIFORM)
             } else {
-                let i = curve.segment_of_u_with(cmp, u);
+                let i = curve.segment_of_u(u);
                 (i, curve.segment(i))
             }
         }
@@ -780,11 +777,11 @@ impl AdaptiveCdf2D {
             let mut rows = [Segment::UNIFORM; LANES];
             let mut j = [0usize; LANES];
             for l in 0..LANES {
-                (j[l], rows[l]) = drawn_segment(cmp, dc[l].marginal_curve(), uy[l]);
+                (j[l], rows[l]) = drawn_segment(dc[l].marginal_curve(), uy[l]);
             }
             let mut columns = [Segment::UNIFORM; LANES];
             for l in 0..LANES {
-                columns[l] = drawn_segment(cmp, dc[l].conditional(j[l]), ux[l]).1;
+                columns[l] = drawn_segment(dc[l].conditional(j[l]), ux[l]).1;
             }
             let sy = segment_samples(&rows, &uy);
             let sx = segment_samples(&columns, &ux);
@@ -905,7 +902,7 @@ impl Distribution2D for AdaptiveCdf2D {
             unsafe { self.sample_batch_gather::<false>(u, out, Vec2::ZERO, &mut []) };
             return;
         }
-        self.sample_batch_lanes::<_, false>(Baseline, u, out, Vec2::ZERO, &mut []);
+        self.sample_batch_lanes::<false>(u, out, Vec2::ZERO, &mut []);
     }
 
     /// The same densities as [`pdf`](Distribution2D::pdf), bit for bit:
@@ -1094,7 +1091,7 @@ mod fast_sampling_tests {
                 d.sample_batch(&u, &mut out);
                 // The staged scalar path, which CPUs without AVX2 take.
                 let mut staged = vec![Sample2D::default(); u.len()];
-                d.sample_batch_lanes::<_, false>(Baseline, &u, &mut staged, Vec2::ZERO, &mut []);
+                d.sample_batch_lanes::<false>(&u, &mut staged, Vec2::ZERO, &mut []);
                 assert_eq!(staged, out);
                 // The densities at random points, at the samples and at the
                 // vertex positions are the plain search's.
@@ -1158,13 +1155,7 @@ mod fast_sampling_tests {
                     let mut same = vec![false; n];
                     d.sample_batch_and_same_segment(&u[..n], margin, &mut batch, &mut same);
                     let mut staged = (vec![Sample2D::default(); n], vec![false; n]);
-                    d.sample_batch_lanes::<_, true>(
-                        Baseline,
-                        &u[..n],
-                        &mut staged.0,
-                        margin,
-                        &mut staged.1,
-                    );
+                    d.sample_batch_lanes::<true>(&u[..n], &mut staged.0, margin, &mut staged.1);
                     assert_eq!(staged, (batch.clone(), same.clone()));
                     for k in 0..n {
                         assert_eq!(
@@ -1299,7 +1290,7 @@ mod fast_sampling_tests {
             }
             // The staged scalar path, which CPUs without AVX2 take.
             let mut staged = vec![Sample1D::default(); u.len()];
-            d.sample_batch_lanes(Baseline, &u, &mut staged);
+            d.sample_batch_lanes(&u, &mut staged);
             assert_eq!(staged, out);
         }
     }

@@ -50,7 +50,7 @@ pub const MAX_CELLS: usize = 1 << 24;
 /// `cdf`, by the shared branch-free search ([`acdf_core::search`]).
 #[inline(always)]
 pub(crate) fn count_at_or_below(cdf: &[f32], u: f32) -> usize {
-    search::count_short_or_search(search::Baseline, cdf, 0, cdf.len(), u)
+    search::count_short_or_search(cdf, 0, cdf.len(), u)
 }
 
 /// The cutpoint index (guide table) of a stored CDF: for G = n equal

@@ -27,7 +27,6 @@ use acdf_core::search::lanes::{
     clamp_unit_lanes, in_unit, join_halves, lanes_i32, load_stage, store_samples, store_samples_1d,
     Bracket, PerLane, Shared, Source, GROUPS, STAGE,
 };
-use acdf_core::search::Baseline;
 use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
 
@@ -538,7 +537,7 @@ impl AdaptiveCdf2D {
                 let drawn = Tables::each(stage).draw::<true>(&ux, &uy, margin);
                 store_stage::<true>(&drawn, out, same);
             } else {
-                Self::sample_each_lanes(Baseline, stage, u, margin, out, same);
+                Self::sample_each_lanes(stage, u, margin, out, same);
             }
         }
     }
