@@ -982,9 +982,8 @@ mod fast_sampling_tests {
     }
 
     /// The reference sample of a curve: the segment by a plain binary
-    /// search, then x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i) in
-    /// f64 clamped into [x_i, x_{i+1}), as the distributions were first
-    /// written.
+    /// search, then x = x_i + (u - c_i) / (c_{i+1} - c_i) (x_{i+1} - x_i)
+    /// clamped into [x_i, x_{i+1}), written out plainly.
     fn plain_sample(curve: Curve<'_>, u: f32) -> (Sample1D, usize) {
         let u = clamp_unit(u);
         if curve.is_uniform() {
@@ -992,12 +991,12 @@ mod fast_sampling_tests {
         }
         let (xs, cdf) = (curve.xs(), curve.cdfs());
         let i = plain_segment(cdf, u);
-        let (c0, c1) = (cdf[i] as f64, cdf[i + 1] as f64);
+        let (c0, c1) = (cdf[i], cdf[i + 1]);
         let (x0, x1) = (xs[i], xs[i + 1]);
-        let t = ((u as f64 - c0) / (c1 - c0)).clamp(0.0, 1.0);
-        let x = (x0 as f64 + t * (x1 as f64 - x0 as f64)) as f32;
+        let t = ((u - c0) / (c1 - c0)).clamp(0.0, 1.0);
+        let x = x0 + t * (x1 - x0);
         let x = x.clamp(x0, f32_below(x1)).min(ONE_MINUS_EPSILON);
-        let pdf = ((c1 - c0) / (x1 as f64 - x0 as f64)) as f32;
+        let pdf = (c1 - c0) / (x1 - x0);
         (Sample1D { x, pdf }, i)
     }
 

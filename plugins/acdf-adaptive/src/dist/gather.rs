@@ -14,9 +14,8 @@
 //! curve reads the other two ends.
 //!
 //! The arithmetic is that of `curve::segment_samples` and
-//! `curve::segment_density`, operation for operation (the differences and
-//! the quotients in f64, the clamps as selects), so the results are
-//! bit-identical to `sample` and `pdf`.
+//! `curve::segment_density`, operation for operation (the clamps as
+//! selects), so the results are bit-identical to `sample` and `pdf`.
 
 // The loops over groups index several parallel arrays of registers by the
 // group number; iterator chains over three or four arrays would hide that.
@@ -24,8 +23,8 @@
 
 use super::{AdaptiveCdf1D, AdaptiveCdf2D};
 use acdf_core::search::lanes::{
-    clamp_unit_lanes, in_unit, join_halves, lanes_i32, load_stage, store_samples, store_samples_1d,
-    Bracket, PerLane, Shared, Source, GROUPS, STAGE,
+    clamp_unit_lanes, in_unit, lanes_i32, load_stage, store_samples, store_samples_1d, Bracket,
+    PerLane, Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use std::arch::x86_64::*;
@@ -40,47 +39,21 @@ struct SegmentLanes {
     c1: __m256,
 }
 
-/// The low and high four lanes, widened to f64.
-#[inline(always)]
-unsafe fn widen(v: __m256) -> (__m256d, __m256d) {
-    (
-        _mm256_cvtps_pd(_mm256_castps256_ps128(v)),
-        _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(v)),
-    )
-}
-
-/// The f64 part of `curve::segment_samples` for four lanes: the position
+/// `curve::segment_samples` for eight lanes: the position
 /// x_i + t (x_{i+1} - x_i) with t = (u - c_i) / (c_{i+1} - c_i) clamped to
-/// [0, 1], and the density (c_{i+1} - c_i) / (x_{i+1} - x_i), each rounded
-/// once to f32.
-#[inline(always)]
-unsafe fn segment_half(
-    x0: __m256d,
-    x1: __m256d,
-    c0: __m256d,
-    c1: __m256d,
-    u: __m256d,
-) -> (__m128, __m128) {
-    let zero = _mm256_setzero_pd();
-    let one = _mm256_set1_pd(1.0);
-    let mass = _mm256_sub_pd(c1, c0);
-    let width = _mm256_sub_pd(x1, x0);
-    let mut t = _mm256_div_pd(_mm256_sub_pd(u, c0), mass);
-    t = _mm256_blendv_pd(t, zero, _mm256_cmp_pd::<_CMP_LT_OQ>(t, zero));
-    t = _mm256_blendv_pd(t, one, _mm256_cmp_pd::<_CMP_GT_OQ>(t, one));
-    let x = _mm256_cvtpd_ps(_mm256_add_pd(x0, _mm256_mul_pd(t, width)));
-    (x, _mm256_cvtpd_ps(_mm256_div_pd(mass, width)))
-}
-
-/// `curve::segment_samples` for eight lanes, four at a time in f64
-/// ([`segment_half`]), then the position clamped into [x_i, x_{i+1}) and
-/// below 1 in f32. Returns (positions, densities).
+/// [0, 1], then clamped into [x_i, x_{i+1}) and below 1, and the density
+/// (c_{i+1} - c_i) / (x_{i+1} - x_i). Returns (positions, densities).
 #[inline(always)]
 unsafe fn segment_samples_lanes(s: SegmentLanes, u: __m256) -> (__m256, __m256) {
-    let (x0, x1, c0, c1, uu) = (widen(s.x0), widen(s.x1), widen(s.c0), widen(s.c1), widen(u));
-    let (x_lo, pdf_lo) = segment_half(x0.0, x1.0, c0.0, c1.0, uu.0);
-    let (x_hi, pdf_hi) = segment_half(x0.1, x1.1, c0.1, c1.1, uu.1);
-    let mut x = join_halves(x_lo, x_hi);
+    let zero = _mm256_setzero_ps();
+    let one = _mm256_set1_ps(1.0);
+    let mass = _mm256_sub_ps(s.c1, s.c0);
+    let width = _mm256_sub_ps(s.x1, s.x0);
+    let mut t = _mm256_div_ps(_mm256_sub_ps(u, s.c0), mass);
+    t = _mm256_blendv_ps(t, zero, _mm256_cmp_ps::<_CMP_LT_OQ>(t, zero));
+    t = _mm256_blendv_ps(t, one, _mm256_cmp_ps::<_CMP_GT_OQ>(t, one));
+    // A separate multiply and add, as the scalar code rounds them.
+    let mut x = _mm256_add_ps(s.x0, _mm256_mul_ps(t, width));
     let below_x1 = _mm256_castsi256_ps(_mm256_sub_epi32(
         _mm256_castps_si256(s.x1),
         _mm256_set1_epi32(1),
@@ -89,24 +62,13 @@ unsafe fn segment_samples_lanes(s: SegmentLanes, u: __m256) -> (__m256, __m256) 
     x = _mm256_blendv_ps(x, below_x1, _mm256_cmp_ps::<_CMP_GT_OQ>(x, below_x1));
     let cap = _mm256_set1_ps(ONE_MINUS_EPSILON);
     x = _mm256_blendv_ps(x, cap, _mm256_cmp_ps::<_CMP_GT_OQ>(x, cap));
-    (x, join_halves(pdf_lo, pdf_hi))
-}
-
-/// `curve::segment_density` for four lanes: (c_{i+1} - c_i) /
-/// (x_{i+1} - x_i) in f64, rounded once to f32.
-#[inline(always)]
-unsafe fn density_half(x0: __m256d, x1: __m256d, c0: __m256d, c1: __m256d) -> __m128 {
-    _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(c1, c0), _mm256_sub_pd(x1, x0)))
+    (x, _mm256_div_ps(mass, width))
 }
 
 /// `curve::segment_density` for eight lanes.
 #[inline(always)]
 unsafe fn segment_density_lanes(s: SegmentLanes) -> __m256 {
-    let (x0, x1, c0, c1) = (widen(s.x0), widen(s.x1), widen(s.c0), widen(s.c1));
-    join_halves(
-        density_half(x0.0, x1.0, c0.0, c1.0),
-        density_half(x0.1, x1.1, c0.1, c1.1),
-    )
+    _mm256_div_ps(_mm256_sub_ps(s.c1, s.c0), _mm256_sub_ps(s.x1, s.x0))
 }
 
 /// Where each lane's conditional (that of marginal segment j) is stored.
