@@ -557,7 +557,7 @@ impl AdaptiveCdf2D {
     /// [0, 1)^2). Cheaper than a density lookup at its four corners: a
     /// tabulated BRDF sampler can take a draw's density from the drawn cell
     /// when this holds (`acdf_uniform::SliceBuilder::same_cell_around`).
-    #[inline]
+    #[inline(always)]
     pub fn same_segment_around(&self, p: Vec2, margin: Vec2) -> bool {
         #[inline(always)]
         fn inside(curve: Curve<'_>, x: f32, m: f32) -> Option<usize> {
@@ -582,7 +582,7 @@ impl AdaptiveCdf2D {
     /// at once. A draw lies in the marginal and conditional segments it was
     /// drawn from, so the box test reads their ends instead of searching for
     /// them again; the sample and the answer are those of the two calls.
-    #[inline]
+    #[inline(always)]
     pub fn sample_and_same_segment(&self, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
         let (sy, j, ys) = self.marginal_curve().sample(u.y);
         let (sx, _, xs) = self.conditional(j).sample(u.x);
@@ -886,7 +886,7 @@ const LANES: usize = 8;
 impl Distribution2D for AdaptiveCdf2D {
     /// y from the marginal with u.y, then x from the conditional of y's
     /// marginal segment with u.x; pdf = p_marginal(y) p_j(x).
-    #[inline]
+    #[inline(always)]
     fn sample(&self, u: Vec2) -> Sample2D {
         self.sample_inline(u)
     }

@@ -62,14 +62,14 @@ impl SliceBuilder for AdaptiveBuilder {
     /// The box lies inside one marginal and one conditional segment (see
     /// [`AdaptiveCdf2D::same_segment_around`]), so the drawn segment's
     /// density is the density at the recomputed point.
-    #[inline]
+    #[inline(always)]
     fn same_cell_around(&self, dist: &AdaptiveCdf2D, p: Vec2, margin: Vec2) -> bool {
         dist.same_segment_around(p, margin)
     }
 
     /// The box test from the segments the draw came from, without a second
     /// search ([`AdaptiveCdf2D::sample_and_same_segment`]).
-    #[inline]
+    #[inline(always)]
     fn sample_and_same_cell(
         &self,
         dist: &AdaptiveCdf2D,
