@@ -71,6 +71,24 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
     f32::from_bits(r.to_bits() | (((y < 0.0) as u32) << 31))
 }
 
+/// v truncated toward zero, as `v as i32` gives it for |v| < 2^30; beyond
+/// that v is first clamped to ±2^30, and NaN gives -2^30.
+///
+/// `as i32` saturates and maps NaN to 0, which x86-64 does with a compare
+/// and two conditional moves around the conversion, one lane at a time; a
+/// clamp written as two selects (`maxps`/`minps`) and an unchecked
+/// conversion keep a loop over many values in SIMD (one `cvttps2dq` for
+/// eight lanes).
+#[inline(always)]
+pub fn truncate_i32(v: f32) -> i32 {
+    const LIMIT: f32 = 1_073_741_824.0;
+    // Selects in the operand order of maxps and minps: a NaN v loses.
+    let v = if v > -LIMIT { v } else { -LIMIT };
+    let v = if v < LIMIT { v } else { LIMIT };
+    // SAFETY: v is finite and within ±2^30, inside i32's range.
+    unsafe { v.to_int_unchecked::<i32>() }
+}
+
 /// (sin 2πt, cos 2πt) for an angle t in turns, without a libm call: the
 /// nearest quarter turn q is split off exactly and the rest (at most π/4 in
 /// magnitude) goes to Taylor polynomials of degree 9 (sine) and 8
@@ -81,7 +99,7 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
 pub fn sin_cos_turns(t: f32) -> (f32, f32) {
     // floor(4t + 1/2) by truncation of a positive number (no libm `round`
     // without SSE4.1); exact for |t| < 2.
-    let qi = (t * 4.0 + 8.5) as i32 - 8;
+    let qi = truncate_i32(t * 4.0 + 8.5) - 8;
     let a = (t - qi as f32 * 0.25) * TAU;
     // The polynomials in a² are evaluated in Estrin's form (pairs of terms
     // combined with a⁴) rather than Horner's: the same number of
@@ -108,6 +126,32 @@ pub fn sin_cos_turns(t: f32) -> (f32, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The truncation agrees with `as i32` inside ±2^30 and clamps
+    /// outside; a wrong clamp or rounding mode fails here.
+    #[test]
+    fn truncation_matches_the_cast_inside_its_range() {
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            0.999_999_9,
+            1.0,
+            -1.0,
+            8.5,
+            16.499_998,
+        ];
+        values.extend((0..2000).map(|k| (k as f32 - 1000.0) * 0.37));
+        values.extend([1.0e9, -1.0e9, 1_073_741_760.0, -1_073_741_760.0]);
+        for v in values {
+            assert_eq!(truncate_i32(v), v as i32, "{v}");
+        }
+        assert_eq!(truncate_i32(3.0e9), 1 << 30);
+        assert_eq!(truncate_i32(f32::INFINITY), 1 << 30);
+        assert_eq!(truncate_i32(f32::NEG_INFINITY), -(1 << 30));
+        assert_eq!(truncate_i32(f32::NAN), -(1 << 30));
+    }
 
     /// The polynomial arctangent and sine/cosine are within their stated
     /// bounds of the `f64` functions over a dense grid of every quadrant.

@@ -786,10 +786,53 @@ impl PiecewiseConstant2D {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather(dists, u, out) };
+            unsafe { Self::sample_each_gather::<false>(dists, u, Vec2::ZERO, out, &mut []) };
             return;
         }
         Self::sample_each_lanes(dists, u, out);
+    }
+
+    /// Whether the box of half-width `margin` around p, a point of
+    /// [0, 1)^2, lies inside p's cell: p is at least `margin` from the
+    /// cell's edges along both axes (no density lookups).
+    #[inline(always)]
+    pub fn same_cell_around(&self, p: Vec2, margin: Vec2) -> bool {
+        inside_cell(p.x, self.nx, margin.x) && inside_cell(p.y, self.ny, margin.y)
+    }
+
+    /// [`sample_each`](Self::sample_each) and, into `same`,
+    /// [`same_cell_around`](Self::same_cell_around) of every sample in its
+    /// own slice. Where the CPU has AVX2 the box tests run in the lanes of
+    /// the draws.
+    pub fn sample_each_and_same_cell(
+        dists: &[&PiecewiseConstant2D],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        let len = dists.len().min(u.len()).min(out.len()).min(same.len());
+        let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { Self::sample_each_gather::<true>(dists, u, margin, out, same) };
+            return;
+        }
+        Self::sample_each_lanes(dists, u, out);
+        Self::same_cells(dists, margin, out, same);
+    }
+
+    /// The box tests of drawn samples, one at a time.
+    fn same_cells(
+        dists: &[&PiecewiseConstant2D],
+        margin: Vec2,
+        out: &[Sample2D],
+        same: &mut [bool],
+    ) {
+        for ((same, s), d) in same.iter_mut().zip(out).zip(dists) {
+            *same = d.same_cell_around(s.p, margin);
+        }
     }
 
     /// The scalar stages of [`sample_each`](Self::sample_each), for slices
@@ -827,6 +870,17 @@ impl PiecewiseConstant2D {
             *o = d.sample(u);
         }
     }
+}
+
+/// Whether x in [0, 1) is at least m from the edges of its cell on a grid
+/// of n cells: its fraction within the cell, x n - floor(x n), lies in
+/// [m n, 1 - m n]. Truncation is the floor here, without a libm call.
+#[inline(always)]
+fn inside_cell(x: f32, n: usize, m: f32) -> bool {
+    let t = x * n as f32;
+    let f = t - acdf_core::fast::truncate_i32(t) as f32;
+    let m = m * n as f32;
+    f >= m && f <= 1.0 - m
 }
 
 /// The number of draws `sample_batch` advances together: sixteen measured
@@ -1238,6 +1292,22 @@ mod tests {
         let mut staged = vec![Sample2D::default(); n];
         PiecewiseConstant2D::sample_each_lanes(&lanes, &u, &mut staged);
         assert_eq!(staged, out[..n]);
+        // The box tests in the lanes answer as the scalar test does, inside
+        // and outside the cell (a margin of 0.01 is a third of a column).
+        for m in [1e-5f32, 0.01, 0.05] {
+            let margin = Vec2::splat(m);
+            let mut drawn = vec![Sample2D::default(); n];
+            let mut same = vec![false; n];
+            PiecewiseConstant2D::sample_each_and_same_cell(
+                &lanes, &u, margin, &mut drawn, &mut same,
+            );
+            assert_eq!(drawn, out[..n]);
+            let expected: Vec<bool> = (0..n)
+                .map(|k| lanes[k].same_cell_around(out[k].p, margin))
+                .collect();
+            assert_eq!(same, expected, "margin {m}");
+            assert!(same.iter().any(|&s| s) && same.iter().any(|&s| !s));
+        }
     }
 
     /// Tables with zeros and a wide dynamic range.

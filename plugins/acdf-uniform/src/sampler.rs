@@ -129,24 +129,29 @@ impl SliceBuilder for PiecewiseConstantBuilder {
         PiecewiseConstant2D::new(values, n_phi_h, n_theta_h)
     }
 
-    /// The box lies in the cell of p: p is at least `margin` from the cell's
-    /// edges along both axes (no density lookups).
+    /// The box lies in the cell of p
+    /// ([`PiecewiseConstant2D::same_cell_around`]).
     #[inline(always)]
     fn same_cell_around(&self, dist: &Self::Dist, p: Vec2, margin: Vec2) -> bool {
-        let inside = |x: f32, n: usize, m: f32| {
-            let t = x * n as f32;
-            // 0 <= x < 1, so truncation is the floor (and no libm call);
-            // through i32, which x86-64 converts in one instruction.
-            let f = t - (t as i32) as f32;
-            let m = m * n as f32;
-            f >= m && f <= 1.0 - m
-        };
-        inside(p.x, dist.nx(), margin.x) && inside(p.y, dist.ny(), margin.y)
+        dist.same_cell_around(p, margin)
     }
 
     /// The staged draws of [`PiecewiseConstant2D::sample_each`].
     fn sample_each(&self, dists: &[&Self::Dist], u: &[Vec2], out: &mut [Sample2D]) {
         PiecewiseConstant2D::sample_each(dists, u, out);
+    }
+
+    /// The draws and box tests together
+    /// ([`PiecewiseConstant2D::sample_each_and_same_cell`]).
+    fn sample_each_and_same_cell(
+        &self,
+        dists: &[&Self::Dist],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        PiecewiseConstant2D::sample_each_and_same_cell(dists, u, margin, out, same);
     }
 }
 

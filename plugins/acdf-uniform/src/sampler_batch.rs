@@ -296,21 +296,38 @@ struct OutgoingLanes<'a, D> {
 }
 
 /// The θ_o cell of every lane's wo (the number of cell bounds at or below
-/// -cos θ_o, as `ThetaOCells::cell` counts them) and the rotation
+/// -cos θ_o, as `ThetaOCells::cell` counts them), the rotation
 /// (cos φ_o, sin φ_o) = (x, y) / sin θ_o, or (1, 0) on the pole, as
-/// `slice_for` computes them: the same IEEE operations, with the lanes as
-/// the inner loop so that the compiler vectorises across them.
+/// `slice_for` computes them, and whether wo is valid
+/// (`is_valid_outgoing`): the same IEEE operations, with the lanes as the
+/// inner loop so that the compiler vectorises across them.
 #[inline(always)]
 fn outgoing_cells_generic<D>(
     bounds: &[f32],
     lanes: &mut OutgoingLanes<'_, D>,
     n: usize,
     cells: &mut [u32; BATCH_CHUNK],
+    valid: &mut [bool; BATCH_CHUNK],
 ) {
-    for &b in bounds {
-        for l in 0..n {
-            cells[l] += (b <= -lanes.wo_z[l]) as u32;
+    for l in 0..n {
+        let wo = Vec3::new(lanes.wo_x[l], lanes.wo_y[l], lanes.wo_z[l]);
+        valid[l] = is_valid_outgoing(wo);
+    }
+    // Eight lanes at a time with the bounds as the inner loop, so that each
+    // block's counts stay in one register across all the bounds.
+    for (block, cells) in cells.chunks_exact_mut(8).take(n.div_ceil(8)).enumerate() {
+        let z: [f32; 8] = std::array::from_fn(|k| -lanes.wo_z[8 * block + k]);
+        let mut count = [0u32; 8];
+        // The bounds come padded to a multiple of eight: eight per
+        // iteration, unrolled.
+        for eight in bounds.chunks_exact(8) {
+            for &b in eight {
+                for k in 0..8 {
+                    count[k] += (b <= z[k]) as u32;
+                }
+            }
         }
+        cells.copy_from_slice(&count);
     }
     for l in 0..n {
         let (x, y) = (lanes.wo_x[l], lanes.wo_y[l]);
@@ -333,8 +350,9 @@ unsafe fn outgoing_cells_avx2<D>(
     lanes: &mut OutgoingLanes<'_, D>,
     n: usize,
     cells: &mut [u32; BATCH_CHUNK],
+    valid: &mut [bool; BATCH_CHUNK],
 ) {
-    outgoing_cells_generic(bounds, lanes, n, cells);
+    outgoing_cells_generic(bounds, lanes, n, cells, valid);
 }
 
 /// The θ_o cells and rotations of a chunk's outgoing directions.
@@ -343,14 +361,15 @@ fn outgoing_cells<D>(
     lanes: &mut OutgoingLanes<'_, D>,
     n: usize,
     cells: &mut [u32; BATCH_CHUNK],
+    valid: &mut [bool; BATCH_CHUNK],
 ) {
     #[cfg(target_arch = "x86_64")]
     if has_avx2() {
         // SAFETY: the CPU has just been found to support AVX2 and FMA.
-        unsafe { outgoing_cells_avx2(bounds, lanes, n, cells) };
+        unsafe { outgoing_cells_avx2(bounds, lanes, n, cells, valid) };
         return;
     }
-    outgoing_cells_generic(bounds, lanes, n, cells);
+    outgoing_cells_generic(bounds, lanes, n, cells, valid);
 }
 
 impl<'a, D: Distribution2D> OutgoingLanes<'a, D> {
@@ -387,10 +406,17 @@ impl<'a, D: Distribution2D> OutgoingLanes<'a, D> {
             return lanes;
         }
         let mut cells = [0u32; BATCH_CHUNK];
-        outgoing_cells(sampler.theta_o_cells.bounds(), &mut lanes, n, &mut cells);
+        let mut valid = [false; BATCH_CHUNK];
+        outgoing_cells(
+            sampler.theta_o_cells.bounds(),
+            &mut lanes,
+            n,
+            &mut cells,
+            &mut valid,
+        );
         let phi_o = sampler.resolution.phi_o;
-        for (l, &wo) in wo[..n].iter().enumerate() {
-            if is_valid_outgoing(wo) {
+        for l in 0..n {
+            if valid[l] {
                 lanes.dist[l] = sampler.slice_at(cells[l] as usize * phi_o).ok();
             }
         }

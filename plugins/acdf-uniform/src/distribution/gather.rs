@@ -206,23 +206,30 @@ impl PiecewiseConstant2D {
     /// share one shape is drawn as in
     /// [`sample_batch_gather`](Self::sample_batch_gather), each lane reading
     /// its own distribution; other stages and the tail go through the
-    /// scalar stages.
+    /// scalar stages. With `SAME`, also the box test of every draw into
+    /// `same` (as long as `out`), in the same lanes.
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn sample_each_gather(
+    pub(super) unsafe fn sample_each_gather<const SAME: bool>(
         dists: &[&PiecewiseConstant2D],
         u: &[Vec2],
+        margin: Vec2,
         out: &mut [Sample2D],
+        same: &mut [bool],
     ) {
         for (k, stage) in dists.chunks(STAGE).enumerate() {
             let range = k * STAGE..k * STAGE + stage.len();
-            let (u, out) = (&u[range.clone()], &mut out[range]);
+            let (u, out) = (&u[range.clone()], &mut out[range.clone()]);
+            let same = if SAME { &mut same[range] } else { &mut [][..] };
             let (nx, ny) = (stage[0].nx, stage[0].ny);
             let fits = |d: &&PiecewiseConstant2D| d.fits_lanes() && d.nx == nx && d.ny == ny;
             if stage.len() < STAGE || !stage.iter().all(fits) {
                 Self::sample_each_lanes(stage, u, out);
+                if SAME {
+                    Self::same_cells(stage, margin, out, same);
+                }
                 continue;
             }
             let mut marginal = [std::ptr::null::<f32>(); STAGE];
@@ -241,8 +248,40 @@ impl PiecewiseConstant2D {
             let (ux, uy) = load_stage(u, true);
             let drawn = tables.draw(&ux, &uy);
             store_stage(&drawn, &ux, &uy, |l| stage[l], out);
+            if SAME {
+                for g in 0..GROUPS {
+                    let inside = _mm256_and_ps(
+                        inside_cell_lanes(drawn.x[g], nx, margin.x),
+                        inside_cell_lanes(drawn.y[g], ny, margin.y),
+                    );
+                    let bits = _mm256_movemask_ps(inside);
+                    for l in 0..8 {
+                        let i = 8 * g + l;
+                        // A draw finished by the scalar code is tested as stored.
+                        same[i] = if drawn.on_edge[g] & (1 << l) != 0 {
+                            stage[i].same_cell_around(out[i].p, margin)
+                        } else {
+                            bits & (1 << l) != 0
+                        };
+                    }
+                }
+            }
         }
     }
+}
+
+/// `inside_cell` in lanes: the same operations (the truncation of x n,
+/// in [0, n), by one conversion), all ones where the lane is inside.
+#[inline(always)]
+unsafe fn inside_cell_lanes(x: __m256, n: usize, m: f32) -> __m256 {
+    let nf = n as f32;
+    let t = _mm256_mul_ps(x, _mm256_set1_ps(nf));
+    let f = _mm256_sub_ps(t, _mm256_cvtepi32_ps(_mm256_cvttps_epi32(t)));
+    let m = m * nf;
+    _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_GE_OQ>(f, _mm256_set1_ps(m)),
+        _mm256_cmp_ps::<_CMP_LE_OQ>(f, _mm256_set1_ps(1.0 - m)),
+    )
 }
 
 /// The cell of each lane's coordinate v in [0, 1) on a grid of n cells,
