@@ -823,6 +823,23 @@ impl PiecewiseConstant2D {
         Self::same_cells(dists, margin, out, same);
     }
 
+    /// `dists[k].pdf(p[k])` for every k, bit for bit: the slices of a batch
+    /// of shading points. Where the CPU has AVX2, eight at a time in SIMD
+    /// lanes, each lane reading its own slice; elsewhere one at a time.
+    pub fn pdf_each(dists: &[&PiecewiseConstant2D], p: &[Vec2], out: &mut [f32]) {
+        let len = dists.len().min(p.len()).min(out.len());
+        let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { Self::pdf_each_gather(dists, p, out) };
+            return;
+        }
+        for ((o, d), &p) in out.iter_mut().zip(dists).zip(p) {
+            *o = d.pdf(p);
+        }
+    }
+
     /// The box tests of drawn samples, one at a time.
     fn same_cells(
         dists: &[&PiecewiseConstant2D],
@@ -1308,6 +1325,21 @@ mod tests {
             assert_eq!(same, expected, "margin {m}");
             assert!(same.iter().any(|&s| s) && same.iter().any(|&s| !s));
         }
+        // Densities bit for bit, at the raw u (outside the square and NaN
+        // included) and at draws from other lanes' tables.
+        let mut points = u.clone();
+        points.extend((0..n).map(|k| out[(k + 3) % n].p));
+        let each: Vec<&PiecewiseConstant2D> = lanes.iter().chain(&lanes).copied().collect();
+        let mut densities = vec![0.0f32; points.len()];
+        PiecewiseConstant2D::pdf_each(&each, &points, &mut densities);
+        for k in 0..points.len() {
+            assert_eq!(
+                densities[k].to_bits(),
+                each[k].pdf(points[k]).to_bits(),
+                "lane {k}"
+            );
+        }
+        assert!(densities.iter().filter(|&&d| d > 0.0).count() > n);
     }
 
     /// Tables with zeros and a wide dynamic range.

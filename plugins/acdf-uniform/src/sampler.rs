@@ -141,6 +141,11 @@ impl SliceBuilder for PiecewiseConstantBuilder {
         PiecewiseConstant2D::sample_each(dists, u, out);
     }
 
+    /// The lookups of [`PiecewiseConstant2D::pdf_each`].
+    fn pdf_each(&self, dists: &[&Self::Dist], p: &[Vec2], out: &mut [f32]) {
+        PiecewiseConstant2D::pdf_each(dists, p, out);
+    }
+
     /// The draws and box tests together
     /// ([`PiecewiseConstant2D::sample_each_and_same_cell`]).
     fn sample_each_and_same_cell(

@@ -422,16 +422,6 @@ impl<'a, D: Distribution2D> OutgoingLanes<'a, D> {
         }
         lanes
     }
-
-    /// Lane l's slice, if it has one.
-    #[inline(always)]
-    fn slice(&self, l: usize) -> Option<Slice<'a, D>> {
-        self.dist[l].map(|dist| Slice {
-            dist,
-            rotation: Vec2::new(self.rotation_x[l], self.rotation_y[l]),
-            map: self.map,
-        })
-    }
 }
 
 impl<D> LaneFrames for OutgoingLanes<'_, D> {
@@ -475,16 +465,17 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             // The draws of the lanes that have a slice, from their slices
             // together (the builder overlaps them where it can).
             dists.clear();
+            dists.extend(lanes.dist[..n].iter().flatten());
+            let m = dists.len();
             let mut lane_u = [Vec2::ZERO; BATCH_CHUNK];
             let mut lane_of = [0usize; BATCH_CHUNK];
-            for l in 0..n {
-                if let Some(dist) = lanes.dist[l] {
-                    lane_u[dists.len()] = uc[l];
-                    lane_of[dists.len()] = l;
-                    dists.push(dist);
+            if m < n {
+                let with_slice = (0..n).filter(|&l| lanes.dist[l].is_some());
+                for (k, l) in with_slice.enumerate() {
+                    lane_u[k] = uc[l];
+                    lane_of[k] = l;
                 }
             }
-            let m = dists.len();
             let mut same = [false; BATCH_CHUNK];
             let mut compact = [Sample2D::default(); BATCH_CHUNK];
             let mut compact_same = [false; BATCH_CHUNK];
@@ -511,11 +502,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             }
             coordinate_lanes(&lanes, &wi[..n], &mut coordinates);
             for (l, o) in oc[..n].iter_mut().enumerate() {
-                *o = lanes.slice(l).and_then(|slice| {
+                *o = lanes.dist[l].and_then(|dist| {
                     self.finish_draw_with(
                         &draws.get(l),
                         || same[l],
-                        || self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi[l]),
+                        || self.mix_with_cosine(coordinates.get(l).table_pdf(dist), wi[l]),
                     )
                 });
             }
@@ -539,22 +530,26 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             // The densities of the lanes with a slice, from their slices
             // together (the builder overlaps the lookups where it can).
             dists.clear();
+            dists.extend(lanes.dist[..n].iter().flatten());
+            let m = dists.len();
             let mut points = [Vec2::ZERO; BATCH_CHUNK];
             let mut lane_of = [0usize; BATCH_CHUNK];
-            for l in 0..n {
-                if let Some(dist) = lanes.dist[l] {
-                    points[dists.len()] = Vec2::new(coordinates.x[l], coordinates.v[l]);
-                    lane_of[dists.len()] = l;
-                    dists.push(dist);
-                }
+            let with_slice = (0..n).filter(|&l| m == n || lanes.dist[l].is_some());
+            for (k, l) in with_slice.enumerate() {
+                points[k] = Vec2::new(coordinates.x[l], coordinates.v[l]);
+                lane_of[k] = l;
             }
-            let m = dists.len();
-            let mut compact_p = [0.0f32; BATCH_CHUNK];
-            self.builder
-                .pdf_each(&dists, &points[..m], &mut compact_p[..m]);
             let mut p_xv = [0.0f32; BATCH_CHUNK];
-            for (k, &l) in lane_of[..m].iter().enumerate() {
-                p_xv[l] = compact_p[k];
+            if m == n {
+                // Every lane has a slice (the usual case): no compaction.
+                self.builder.pdf_each(&dists, &points[..n], &mut p_xv[..n]);
+            } else {
+                let mut compact_p = [0.0f32; BATCH_CHUNK];
+                self.builder
+                    .pdf_each(&dists, &points[..m], &mut compact_p[..m]);
+                for (k, &l) in lane_of[..m].iter().enumerate() {
+                    p_xv[l] = compact_p[k];
+                }
             }
             for (l, o) in oc[..n].iter_mut().enumerate() {
                 let wi = ic[l];

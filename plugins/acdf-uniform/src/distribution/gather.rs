@@ -1,5 +1,6 @@
 //! The AVX2 batch paths of the piecewise-constant distributions:
-//! `PiecewiseConstant2D::sample_batch`, `sample_each` and `pdf_batch`, and
+//! `PiecewiseConstant2D::sample_batch`, `sample_each` (with or without the
+//! box test of each draw), `pdf_batch` and `pdf_each`, and
 //! `PiecewiseConstant1D::sample_batch`. The searches are those of
 //! [`acdf_core::search::lanes`], the final arithmetic runs in the same lanes.
 //!
@@ -295,10 +296,10 @@ unsafe fn cell_lanes(v: __m256, n: usize) -> __m256i {
 }
 
 /// The probability of each lane's cell `start + k` of a stored CDF
-/// beginning at `start`, as `cell_mass` computes it: P_k - P_{k-1}, with
-/// P_{-1} = 0. The run must hold at least two entries.
+/// beginning at `start` (in group g of `cdf`), as `cell_mass` computes it:
+/// P_k - P_{k-1}, with P_{-1} = 0. The run must hold at least two entries.
 #[inline(always)]
-unsafe fn cell_mass_lanes(cdf: *const f32, start: __m256i, k: __m256i) -> __m256 {
+unsafe fn cell_mass_lanes<S: Source>(cdf: &S, g: usize, start: __m256i, k: __m256i) -> __m256 {
     let zero = _mm256_setzero_si256();
     let first = _mm256_cmpeq_epi32(k, zero);
     // Entries k - 1 and k, or 0 and 1 for k = 0.
@@ -306,7 +307,7 @@ unsafe fn cell_mass_lanes(cdf: *const f32, start: __m256i, k: __m256i) -> __m256
         start,
         _mm256_max_epi32(_mm256_sub_epi32(k, _mm256_set1_epi32(1)), zero),
     );
-    let (a, b) = Shared(cdf).gather_pairs(0, from);
+    let (a, b) = cdf.gather_pairs(g, from);
     let first = _mm256_castsi256_ps(first);
     let upper = _mm256_blendv_ps(b, a, first);
     let lower = _mm256_andnot_ps(first, a);
@@ -332,21 +333,16 @@ impl PiecewiseConstant2D {
         let len = p.len().min(out.len());
         let (p, out) = (&p[..len], &mut out[..len]);
         let (nx, ny) = (self.nx, self.ny);
-        let (nxf, nyf) = (_mm256_set1_ps(nx as f32), _mm256_set1_ps(ny as f32));
+        let (marginal, conditional) = (
+            Shared(self.marginal.as_ptr()),
+            Shared(self.conditional.as_ptr()),
+        );
         let mut p_chunks = p.chunks_exact(8);
         let mut out_chunks = out.chunks_exact_mut(8);
         for (pc, oc) in (&mut p_chunks).zip(&mut out_chunks) {
             let (x, y) = load_pairs(pc);
-            let inside = _mm256_and_ps(in_unit(x), in_unit(y));
-            // Outside points look up cell (0, 0) and are zeroed at the end.
-            let (x, y) = (_mm256_and_ps(x, inside), _mm256_and_ps(y, inside));
-            let (ix, iy) = (cell_lanes(x, nx), cell_lanes(y, ny));
-            let zero = _mm256_setzero_si256();
-            let row_mass = cell_mass_lanes(self.marginal.as_ptr(), zero, iy);
-            let row = _mm256_mullo_epi32(iy, _mm256_set1_epi32(nx as i32));
-            let col_mass = cell_mass_lanes(self.conditional.as_ptr(), row, ix);
-            let pdf = joint_pdf_lanes(_mm256_mul_ps(row_mass, nyf), _mm256_mul_ps(col_mass, nxf));
-            _mm256_storeu_ps(oc.as_mut_ptr(), _mm256_and_ps(pdf, inside));
+            let pdf = densities_lanes(&marginal, &conditional, 0, (nx, ny), x, y);
+            _mm256_storeu_ps(oc.as_mut_ptr(), pdf);
         }
         for (o, &p) in out_chunks
             .into_remainder()
@@ -356,6 +352,71 @@ impl PiecewiseConstant2D {
             *o = acdf_core::Distribution2D::pdf(self, p);
         }
     }
+
+    /// [`pdf_each`](Self::pdf_each) in AVX2 lanes: a stage of [`STAGE`]
+    /// points whose distributions all fit the lanes and share one shape is
+    /// looked up as in [`pdf_batch_gather`](Self::pdf_batch_gather), each
+    /// lane reading its own distribution; other stages and the tail go one
+    /// by one.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn pdf_each_gather(
+        dists: &[&PiecewiseConstant2D],
+        p: &[Vec2],
+        out: &mut [f32],
+    ) {
+        for (k, stage) in dists.chunks(STAGE).enumerate() {
+            let range = k * STAGE..k * STAGE + stage.len();
+            let (p, out) = (&p[range.clone()], &mut out[range]);
+            let (nx, ny) = (stage[0].nx, stage[0].ny);
+            let fits = |d: &&PiecewiseConstant2D| d.fits_pdf_lanes() && d.nx == nx && d.ny == ny;
+            if stage.len() < STAGE || !stage.iter().all(fits) {
+                for ((o, d), &p) in out.iter_mut().zip(stage).zip(p) {
+                    *o = acdf_core::Distribution2D::pdf(*d, p);
+                }
+                continue;
+            }
+            let mut marginal = [std::ptr::null::<f32>(); STAGE];
+            let mut conditional = [std::ptr::null::<f32>(); STAGE];
+            for (l, d) in stage.iter().enumerate() {
+                marginal[l] = d.marginal.as_ptr();
+                conditional[l] = d.conditional.as_ptr();
+            }
+            let (marginal, conditional) = (PerLane::new(&marginal), PerLane::new(&conditional));
+            for g in 0..GROUPS {
+                let (x, y) = load_pairs(&p[8 * g..]);
+                let pdf = densities_lanes(&marginal, &conditional, g, (nx, ny), x, y);
+                _mm256_storeu_ps(out[8 * g..].as_mut_ptr(), pdf);
+            }
+        }
+    }
+}
+
+/// The densities `pdf` gives at eight points (x, y) of tables of shape
+/// (nx, ny) (group g of the sources): the cells from the coordinates, each
+/// cell's two CDF entries in one paired read, `joint_pdf` of the masses;
+/// 0 outside [0, 1)^2 (NaN included).
+#[inline(always)]
+unsafe fn densities_lanes<S: Source>(
+    marginal: &S,
+    conditional: &S,
+    g: usize,
+    (nx, ny): (usize, usize),
+    x: __m256,
+    y: __m256,
+) -> __m256 {
+    let inside = _mm256_and_ps(in_unit(x), in_unit(y));
+    // Outside points look up cell (0, 0) and are zeroed at the end.
+    let (x, y) = (_mm256_and_ps(x, inside), _mm256_and_ps(y, inside));
+    let (ix, iy) = (cell_lanes(x, nx), cell_lanes(y, ny));
+    let row_mass = cell_mass_lanes(marginal, g, _mm256_setzero_si256(), iy);
+    let row = _mm256_mullo_epi32(iy, _mm256_set1_epi32(nx as i32));
+    let col_mass = cell_mass_lanes(conditional, g, row, ix);
+    let (nxf, nyf) = (_mm256_set1_ps(nx as f32), _mm256_set1_ps(ny as f32));
+    let pdf = joint_pdf_lanes(_mm256_mul_ps(row_mass, nyf), _mm256_mul_ps(col_mass, nxf));
+    _mm256_and_ps(pdf, inside)
 }
 
 impl PiecewiseConstant1D {
