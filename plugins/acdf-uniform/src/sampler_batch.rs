@@ -441,9 +441,11 @@ impl<D> LaneFrames for OutgoingLanes<'_, D> {
 
 impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// `sample` of every (wo, u) pair without a cosine lobe, a chunk at a
-    /// time: the slices lane by lane, the searches lane by lane (independent,
-    /// so the core overlaps their loads), the geometry and the exact
-    /// densities in SIMD, then each draw's check.
+    /// time: the outgoing cells in SIMD and the slices lane by lane, the
+    /// draws and their box tests by the builder's
+    /// `sample_each_and_same_cell` (SIMD lanes with one table each, for
+    /// both built-in builders), the geometry and the exact densities in
+    /// SIMD, then each draw's check.
     pub(super) fn sample_each_table(
         &self,
         wo: &[Vec3],
@@ -514,8 +516,9 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     }
 
     /// `pdf` of every (wo, wi) pair without a cosine lobe, a chunk at a
-    /// time: the slices lane by lane, the coordinates in SIMD, then each
-    /// table lookup.
+    /// time: the slices as in `sample_each_table`, the coordinates in SIMD,
+    /// the table lookups by the builder's `pdf_each`, then each lane's
+    /// mixing.
     pub(super) fn pdf_each_table(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
         let mut coordinates = CoordinateLanes::new();
         let mut dists = Vec::with_capacity(BATCH_CHUNK);
