@@ -233,15 +233,10 @@ impl PiecewiseConstant2D {
                 }
                 continue;
             }
-            let mut marginal = [std::ptr::null::<f32>(); STAGE];
-            let mut conditional = [std::ptr::null::<f32>(); STAGE];
-            for (l, d) in stage.iter().enumerate() {
-                marginal[l] = d.marginal.as_ptr();
-                conditional[l] = d.conditional.as_ptr();
-            }
+            let (marginal, conditional) = per_lane_tables(stage);
             let tables = Tables {
-                marginal: PerLane::new(&marginal),
-                conditional: PerLane::new(&conditional),
+                marginal,
+                conditional,
                 nx,
                 ny,
                 shared: None,
@@ -269,6 +264,22 @@ impl PiecewiseConstant2D {
             }
         }
     }
+}
+
+/// The marginal and conditional CDFs of a stage's [`STAGE`] distributions,
+/// lane l reading `stage[l]`'s.
+///
+/// # Safety
+/// AVX2; `stage` holds [`STAGE`] distributions.
+#[inline(always)]
+unsafe fn per_lane_tables(stage: &[&PiecewiseConstant2D]) -> (PerLane, PerLane) {
+    let mut marginal = [std::ptr::null::<f32>(); STAGE];
+    let mut conditional = [std::ptr::null::<f32>(); STAGE];
+    for (l, d) in stage.iter().take(STAGE).enumerate() {
+        marginal[l] = d.marginal.as_ptr();
+        conditional[l] = d.conditional.as_ptr();
+    }
+    (PerLane::new(&marginal), PerLane::new(&conditional))
 }
 
 /// `inside_cell` in lanes: the same operations (the truncation of x n,
@@ -378,13 +389,7 @@ impl PiecewiseConstant2D {
                 }
                 continue;
             }
-            let mut marginal = [std::ptr::null::<f32>(); STAGE];
-            let mut conditional = [std::ptr::null::<f32>(); STAGE];
-            for (l, d) in stage.iter().enumerate() {
-                marginal[l] = d.marginal.as_ptr();
-                conditional[l] = d.conditional.as_ptr();
-            }
-            let (marginal, conditional) = (PerLane::new(&marginal), PerLane::new(&conditional));
+            let (marginal, conditional) = per_lane_tables(stage);
             for g in 0..GROUPS {
                 let (x, y) = load_pairs(&p[8 * g..]);
                 let pdf = densities_lanes(&marginal, &conditional, g, (nx, ny), x, y);
