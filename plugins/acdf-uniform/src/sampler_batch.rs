@@ -537,7 +537,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             let m = dists.len();
             let mut points = [Vec2::ZERO; BATCH_CHUNK];
             let mut lane_of = [0usize; BATCH_CHUNK];
-            let with_slice = (0..n).filter(|&l| m == n || lanes.dist[l].is_some());
+            let with_slice = (0..n).filter(|&l| lanes.dist[l].is_some());
             for (k, l) in with_slice.enumerate() {
                 points[k] = Vec2::new(coordinates.x[l], coordinates.v[l]);
                 lane_of[k] = l;
