@@ -14,7 +14,10 @@
 //!   default `adaptive` sampler); `sample_batch` over all the numbers on one
 //!   thread, and split into chunks over every rayon thread.
 //! - **BRDF samplers** (`uniform`, `adaptive`) on the built-in material at
-//!   the isotropic resolution, all slices built beforehand, on one thread:
+//!   the isotropic resolution, then the seed's configuration (`uniform` at
+//!   the paper's 32x16x256x32, 17 MB on nickel) and the recommended one
+//!   (`adaptive:chi2` at the isotropic resolution, a few hundred KB), all
+//!   slices built beforehand, on one thread:
 //!   `sample` called once per draw with the outgoing direction changing
 //!   every draw (a path tracer's case, cycling through 64 directions);
 //!   `sample_each` over the same (wo, u) pairs (a wavefront renderer's
@@ -91,7 +94,9 @@ pub struct BenchReport {
     pub load_average: Option<f64>,
     /// The 2D distributions of one slice (256 θ_h × 32 φ_h).
     pub distributions: Vec<DistributionBench>,
-    /// The BRDF samplers at the isotropic resolution 32x1x256x32.
+    /// The BRDF samplers: `uniform` and `adaptive:dp` at the isotropic
+    /// resolution 32x1x256x32, then `uniform` at the paper's 32x16x256x32
+    /// and `adaptive:chi2` at 32x1x256x32.
     pub samplers: Vec<SamplerBench>,
     /// The full 4D builds from a MERL-layout table.
     pub builds: Vec<BuildBench>,
@@ -365,11 +370,22 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     uniform.build_all()?;
     let adaptive = TabulatedBrdfSampler::new(brdf.clone(), res, adaptive_builder.clone())?;
     adaptive.build_all()?;
-    let samplers = vec![
+    let mut samplers = vec![
         bench_sampler(&uniform, &u, repeats),
         bench_sampler(&adaptive, &u, repeats),
     ];
     drop((uniform, adaptive));
+    // Then the seed's configuration against the one this project
+    // recommends: the same calls over tables some 70 times apart in size.
+    let seed = UniformBrdfSampler::new(brdf.clone(), Resolution::PAPER, PiecewiseConstantBuilder)?;
+    seed.build_all()?;
+    samplers.push(bench_sampler(&seed, &u, repeats));
+    drop(seed);
+    let chi2 =
+        TabulatedBrdfSampler::new(brdf.clone(), res, AdaptiveBuilder::by_name("chi2", None)?)?;
+    chi2.build_all()?;
+    samplers.push(bench_sampler(&chi2, &u, repeats));
+    drop(chi2);
 
     // (d): the full 4D builds from a MERL-layout table.
     let merl: Arc<dyn Brdf> = Arc::new(MerlTable::tabulate(&*brdf));

@@ -726,9 +726,34 @@ fn bench_prints_a_table_and_writes_documented_json() {
         distributions[1]["storage_bytes"].as_u64() < distributions[0]["storage_bytes"].as_u64()
     );
     let samplers = v["samplers"].as_array().unwrap();
-    assert_eq!(samplers.len(), 2);
+    let rows: Vec<(&str, &str)> = samplers
+        .iter()
+        .map(|s| {
+            (
+                s["name"].as_str().unwrap(),
+                s["resolution"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            ("uniform", "32x1x256x32"),
+            ("adaptive:dp", "32x1x256x32"),
+            ("uniform", "32x16x256x32"),
+            ("adaptive:chi2", "32x1x256x32"),
+        ]
+    );
+    // The seed's configuration stores over 30 times what the recommended
+    // one does.
+    let bytes = |k: usize| samplers[k]["storage_bytes"].as_u64().unwrap();
+    assert!(
+        bytes(2) > 30 * bytes(3),
+        "{} against {}",
+        bytes(2),
+        bytes(3)
+    );
     for s in samplers {
-        assert_eq!(s["resolution"], "32x1x256x32");
         for field in [
             "sample_per_second",
             "sample_each_per_second",
