@@ -164,6 +164,22 @@ impl Bracket {
             self.count[g] = _mm256_sub_epi32(at[g], base[g]);
         }
     }
+
+    /// The whole search of one sorted list `run` shared by every lane,
+    /// whose last entry is above every u: [`shared_top`](Self::shared_top),
+    /// then [`lift`](Self::lift) from the step it leaves.
+    ///
+    /// # Safety
+    /// AVX2; `run` holds at least one entry.
+    #[inline(always)]
+    pub unsafe fn search_shared(run: &[f32], u: &[__m256; GROUPS]) -> Bracket {
+        let zero = [_mm256_setzero_si256(); GROUPS];
+        let last = [_mm256_set1_epi32(run.len() as i32 - 1); GROUPS];
+        let mut found = Bracket::start();
+        let step = found.shared_top(run, u);
+        found.lift(&Shared(run.as_ptr()), &zero, &last, u, step);
+        found
+    }
 }
 
 /// Where the lanes read their entries from: one array shared by every lane
@@ -377,6 +393,21 @@ pub unsafe fn load_pairs(p: &[Vec2]) -> (__m256, __m256) {
     let x = _mm256_shuffle_ps::<0b10_00_10_00>(a, b);
     let y = _mm256_shuffle_ps::<0b11_01_11_01>(a, b);
     (pair_order(x), pair_order(y))
+}
+
+/// A stage's [`STAGE`] uniform numbers as lanes, group by group, clamped
+/// with [`clamp_unit_lanes`].
+///
+/// # Safety
+/// AVX2; `u` holds at least [`STAGE`] numbers.
+#[inline(always)]
+pub unsafe fn load_stage_1d(u: &[f32]) -> [__m256; GROUPS] {
+    assert!(u.len() >= STAGE);
+    let mut v = [_mm256_setzero_ps(); GROUPS];
+    for g in 0..GROUPS {
+        v[g] = clamp_unit_lanes(_mm256_loadu_ps(u[8 * g..].as_ptr()));
+    }
+    v
 }
 
 /// A stage's [`STAGE`] pairs as x and y lanes, group by group: clamped
@@ -692,6 +723,23 @@ mod tests {
         }
     }
 
+    /// Lanes holding base, base + 1, ..., base + 7.
+    ///
+    /// # Safety
+    /// AVX2.
+    unsafe fn lane(base: f32) -> __m256 {
+        _mm256_setr_ps(
+            base,
+            base + 1.0,
+            base + 2.0,
+            base + 3.0,
+            base + 4.0,
+            base + 5.0,
+            base + 6.0,
+            base + 7.0,
+        )
+    }
+
     /// Samples stored from lanes land in their own slots, in order.
     #[test]
     fn stored_samples_are_in_lane_order() {
@@ -701,18 +749,6 @@ mod tests {
         let mut out = vec![Sample2D::default(); 9];
         // SAFETY: AVX2 was found above; `out` holds eight samples.
         unsafe {
-            let lane = |base: f32| {
-                _mm256_setr_ps(
-                    base,
-                    base + 1.0,
-                    base + 2.0,
-                    base + 3.0,
-                    base + 4.0,
-                    base + 5.0,
-                    base + 6.0,
-                    base + 7.0,
-                )
-            };
             store_samples(lane(0.0), lane(10.0), lane(20.0), &mut out);
         }
         for (l, s) in out.iter().take(8).enumerate() {
@@ -729,18 +765,6 @@ mod tests {
         let mut out = vec![Sample1D::default(); 9];
         // SAFETY: AVX2 was found above; `out` holds eight samples.
         unsafe {
-            let lane = |base: f32| {
-                _mm256_setr_ps(
-                    base,
-                    base + 1.0,
-                    base + 2.0,
-                    base + 3.0,
-                    base + 4.0,
-                    base + 5.0,
-                    base + 6.0,
-                    base + 7.0,
-                )
-            };
             store_samples_1d(lane(0.0), lane(10.0), &mut out);
         }
         for (l, s) in out.iter().take(8).enumerate() {

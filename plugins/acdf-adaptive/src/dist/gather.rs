@@ -23,7 +23,7 @@
 
 use super::{AdaptiveCdf1D, AdaptiveCdf2D};
 use acdf_core::search::lanes::{
-    clamp_unit_lanes, in_unit, lanes_i32, load_stage, store_samples, store_samples_1d, Bracket,
+    in_unit, lanes_i32, load_stage, load_stage_1d, store_samples, store_samples_1d, Bracket,
     PerLane, Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
@@ -552,19 +552,12 @@ impl AdaptiveCdf1D {
         let m = self.vertices.len() / 2;
         // The CDF values c_1, ..., c_{m-1} (the last is 1).
         let run = &self.vertices[m + 1..];
-        let zero = [_mm256_setzero_si256(); GROUPS];
-        let last = [_mm256_set1_epi32(m as i32 - 2); GROUPS];
         let stages = len / STAGE;
         for k in 0..stages {
             let range = k * STAGE..(k + 1) * STAGE;
             let (u, out) = (&u[range.clone()], &mut out[range]);
-            let mut v = [_mm256_setzero_ps(); GROUPS];
-            for g in 0..GROUPS {
-                v[g] = clamp_unit_lanes(_mm256_loadu_ps(u[8 * g..8 * g + 8].as_ptr()));
-            }
-            let mut segments = Bracket::start();
-            let step = segments.shared_top(run, &v);
-            segments.lift(&Shared(run.as_ptr()), &zero, &last, &v, step);
+            let v = load_stage_1d(u);
+            let segments = Bracket::search_shared(run, &v);
             for g in 0..GROUPS {
                 let (x0, x1) = Shared(self.vertices.as_ptr()).gather_pairs(g, segments.count[g]);
                 let segment = SegmentLanes {

@@ -21,7 +21,7 @@
 
 use super::{PiecewiseConstant1D, PiecewiseConstant2D};
 use acdf_core::search::lanes::{
-    clamp_unit_lanes, in_unit, lanes_f32, lanes_i32, load_pairs, load_stage, store_samples,
+    in_unit, lanes_f32, lanes_i32, load_pairs, load_stage, load_stage_1d, store_samples,
     store_samples_1d, Bracket, PerLane, Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
@@ -444,20 +444,12 @@ impl PiecewiseConstant1D {
     pub(super) unsafe fn sample_batch_gather(&self, u: &[f32], out: &mut [Sample1D]) {
         let len = u.len().min(out.len());
         let n = self.cdf.len();
-        let cdf = Shared(self.cdf.as_ptr());
-        let zero = [_mm256_setzero_si256(); GROUPS];
-        let last = [_mm256_set1_epi32(n as i32 - 1); GROUPS];
         let stages = len / STAGE;
         for k in 0..stages {
             let range = k * STAGE..(k + 1) * STAGE;
             let (u, out) = (&u[range.clone()], &mut out[range]);
-            let mut v = [_mm256_setzero_ps(); GROUPS];
-            for g in 0..GROUPS {
-                v[g] = clamp_unit_lanes(_mm256_loadu_ps(u[8 * g..8 * g + 8].as_ptr()));
-            }
-            let mut cells = Bracket::start();
-            let step = cells.shared_top(&self.cdf, &v);
-            cells.lift(&cdf, &zero, &last, &v, step);
+            let v = load_stage_1d(u);
+            let cells = Bracket::search_shared(&self.cdf, &v);
             for g in 0..GROUPS {
                 let mass = _mm256_sub_ps(cells.upper[g], cells.lower[g]);
                 let du = _mm256_div_ps(_mm256_sub_ps(v[g], cells.lower[g]), mass);
