@@ -833,19 +833,29 @@ impl TableCoordinates {
 /// is unit to a few ulps, |w|² = 1 + ε, and one Newton step for 1/|w|,
 /// w (3 - |w|²) / 2, leaves an error of order ε², with neither a square
 /// root nor a division; a wo far from unit length takes the full
-/// normalisation (zero for a degenerate result). Both are computed and one
-/// is selected, so that the function has no branch.
+/// normalisation (zero for a degenerate result).
+///
+/// The full normalisation is computed only on its branch: a select would
+/// make every call wait for its square root and division, which lie on the
+/// chain that ends in wi. One call at a time, `sample` ran 5 to 7% faster
+/// this way on the built-in nickel (isotropic resolution, wo changing every
+/// call, best of 10 runs of 10^6 draws, three runs on a Zen 5 machine). In
+/// the batch loops the compiler still turns the branch into a select, so
+/// they vectorise as before.
 #[inline(always)]
 fn unit_reflection(wo: Vec3, h: Vec3) -> Vec3 {
     let w = reflect(wo, h);
     let length_squared = w.length_squared();
     let newton = w * (1.5 - 0.5 * length_squared);
-    let full = w * length_squared.sqrt().recip();
-    let full = if full.is_finite() { full } else { Vec3::ZERO };
     if (length_squared - 1.0).abs() < 1e-3 {
         newton
     } else {
-        full
+        let full = w * length_squared.sqrt().recip();
+        if full.is_finite() {
+            full
+        } else {
+            Vec3::ZERO
+        }
     }
 }
 
