@@ -92,6 +92,13 @@ pub struct BenchReport {
     /// `/proc/loadavg`), `null` where unavailable: a loaded machine gives
     /// lower rates.
     pub load_average: Option<f64>,
+    /// The processor the figures were measured on: its model name (Linux
+    /// `/proc/cpuinfo`; `unknown` elsewhere), then its family and model
+    /// numbers and the vector extensions the batch paths can use, e.g.
+    /// `AMD EPYC (family 26, model 2), avx2`. The same binary gave rates
+    /// twice as high on one machine kind as on another, so a figure means
+    /// little without it.
+    pub cpu: String,
     /// The 2D distributions of one slice (256 θ_h × 32 φ_h).
     pub distributions: Vec<DistributionBench>,
     /// The BRDF samplers: `uniform` and `adaptive:dp` at the isotropic
@@ -175,6 +182,31 @@ fn load_average() -> Option<f64> {
         .next()?
         .parse()
         .ok()
+}
+
+/// The `cpu` field of [`BenchReport`].
+fn cpu_description() -> String {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |key: &str| {
+        info.lines()
+            .find(|l| l.split(':').next().is_some_and(|k| k.trim() == key))
+            .and_then(|l| l.split_once(':'))
+            .map(|(_, v)| v.trim().to_string())
+    };
+    let mut s = field("model name").unwrap_or_else(|| "unknown".to_string());
+    if let (Some(family), Some(model)) = (field("cpu family"), field("model")) {
+        s.push_str(&format!(" (family {family}, model {model})"));
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            s.push_str(", avx2");
+        }
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            s.push_str(", avx512f");
+        }
+    }
+    s
 }
 
 /// Chunk of draws per `sample_batch` call (and per rayon task).
@@ -413,6 +445,7 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
         repeats,
         threads: rayon::current_num_threads(),
         load_average,
+        cpu: cpu_description(),
         distributions,
         samplers,
         builds,
@@ -422,14 +455,15 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
 /// The report as a plain-text table (millions per second, MB, seconds).
 pub fn format_bench(report: &BenchReport) -> String {
     let mut s = format!(
-        "material {}, {} samples, best of {}, {} threads, load average {}\n",
+        "material {}, {} samples, best of {}, {} threads, load average {}\ncpu {}\n",
         report.material,
         report.samples,
         report.repeats,
         report.threads,
         report
             .load_average
-            .map_or_else(|| "unknown".to_string(), |l| format!("{l:.2}"))
+            .map_or_else(|| "unknown".to_string(), |l| format!("{l:.2}")),
+        report.cpu
     );
     s.push_str(&format!(
         "{:<24} {:>10} {:>12} {:>12}\n",

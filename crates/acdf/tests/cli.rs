@@ -708,6 +708,12 @@ fn bench_prints_a_table_and_writes_documented_json() {
     let v = read_json(&json);
     assert_eq!(v["material"], "nickel");
     assert_eq!(v["samples"], 3000);
+    // The processor is named, in the table and the JSON.
+    let cpu = v["cpu"].as_str().unwrap();
+    assert!(
+        !cpu.is_empty() && out.contains(&format!("cpu {cpu}")),
+        "{cpu}"
+    );
     let positive = |x: &serde_json::Value| x.as_f64().is_some_and(|x| x.is_finite() && x > 0.0);
     let distributions = v["distributions"].as_array().unwrap();
     assert_eq!(distributions.len(), 2);
