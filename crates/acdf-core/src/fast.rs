@@ -6,7 +6,7 @@
 //! branch-free polynomials, accurate to a few 1e-7 rad, with no libm call,
 //! and they are the same in `sample` and `pdf`, so the two stay consistent.
 
-use std::f32::consts::{FRAC_PI_2, PI, TAU};
+use std::f32::consts::{FRAC_PI_2, PI};
 
 /// Coefficients c_k of atan(a) ≈ a Σ c_k a^{2k} on [0, 1]: the Chebyshev
 /// interpolant of atan(√t)/√t in t = a² at degree 7, converted to powers of
@@ -89,38 +89,64 @@ pub fn truncate_i32(v: f32) -> i32 {
     unsafe { v.to_int_unchecked::<i32>() }
 }
 
-/// (sin 2πt, cos 2πt) for an angle t in turns, without a libm call: the
-/// nearest quarter turn q is split off exactly and the rest (at most π/4 in
-/// magnitude) goes to Taylor polynomials of degree 9 (sine) and 8
-/// (cosine), whose truncation errors at π/4 are 1.8e-9 and 2.5e-8. The
-/// reduction is exact for |t| < 2, so the error is that of `f32` rounding,
-/// a few 1e-8 absolute.
+/// (sin 2πt, cos 2πt) for an angle t in turns: [`sin_cos_quarter_turns`]
+/// of 4t (exact, a power-of-two scaling).
 #[inline(always)]
 pub fn sin_cos_turns(t: f32) -> (f32, f32) {
-    // floor(4t + 1/2) by truncation of a positive number (no libm `round`
-    // without SSE4.1); exact for |t| < 2.
-    let qi = truncate_i32(t * 4.0 + 8.5) - 8;
-    let a = (t - qi as f32 * 0.25) * TAU;
+    sin_cos_quarter_turns(t * 4.0)
+}
+
+/// 1.5 · 2^23: added to an `f32` of magnitude below 2^22 and taken away
+/// again, it leaves the value rounded to the nearest integer (ties to even),
+/// since the sum's unit in the last place is 1.
+const ROUND_TO_INTEGER: f32 = 12_582_912.0;
+
+/// (sin(πs/2), cos(πs/2)) for an angle s in quarter turns, without a libm
+/// call: the nearest quarter turn q is split off exactly and the rest (at
+/// most π/4 in magnitude) goes to Taylor polynomials of degree 9 (sine) and
+/// 8 (cosine), whose truncation errors at π/4 are 1.8e-9 and 2.5e-8. The
+/// reduction is exact for |s| < 8, so the error is that of `f32` rounding,
+/// a few 1e-8 absolute.
+///
+/// q comes from adding and removing [`ROUND_TO_INTEGER`], and its low bits
+/// from the bits of the sum, rather than from a conversion to an integer
+/// and back: two additions instead of a clamp and two conversions on the
+/// chain every draw's direction waits for, and no conversion at all in a
+/// loop over many angles. One call at a time the tabulated samplers'
+/// `sample` ran 2 to 6% faster (uniform 15.7-16.0 to 16.2-16.3 M/s,
+/// `adaptive:dp` 14.6-15.0 to 15.0-15.8, built-in nickel, best of 10 runs
+/// of 10^6 calls, three alternating runs on a Zen 5 machine). The result
+/// is bit for bit that of the former reduction by truncation, except where
+/// 4t lies exactly halfway between two integers.
+#[inline(always)]
+pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
+    let shifted = s + ROUND_TO_INTEGER;
+    let q = shifted - ROUND_TO_INTEGER;
+    // s - q is exact (|s - q| <= 1/2 and both are multiples of s's ulp).
+    let a = (s - q) * FRAC_PI_2;
     // The polynomials in a² are evaluated in Estrin's form (pairs of terms
     // combined with a⁴) rather than Horner's: the same number of
     // operations but about half the chain of dependent ones, which is what
     // a single draw waits on.
     let a2 = a * a;
     let a4 = a2 * a2;
-    let s = a
+    let sin_a = a
         * ((1.0 + a2 * (-1.0 / 6.0))
             + a4 * ((1.0 / 120.0 + a2 * (-1.0 / 5040.0)) + a4 * (1.0 / 362_880.0)));
-    let c = (1.0 + a2 * -0.5) + a4 * ((1.0 / 24.0 + a2 * (-1.0 / 720.0)) + a4 * (1.0 / 40_320.0));
-    // Rotate by q quarter turns: (sin, cos)(a + q π/2) = (s C + c S,
-    // c C - s S) with (S, C) = (sin, cos)(q π/2) in {0, ±1}, found by
-    // arithmetic on the bits of q (S = ±1 for odd q, C = ±1 for even q, the
-    // sign flipping every two quarters) instead of a four-way branch or a
-    // table, so that loops over many angles vectorise. The products by 0
-    // and ±1 are exact.
-    let odd = (qi & 1) as f32;
-    let sign = 1.0 - (qi & 2) as f32;
-    let (sq, cq) = (odd * sign, (1.0 - odd) * sign);
-    (s * cq + c * sq, c * cq - s * sq)
+    let cos_a =
+        (1.0 + a2 * -0.5) + a4 * ((1.0 / 24.0 + a2 * (-1.0 / 720.0)) + a4 * (1.0 / 40_320.0));
+    // Rotate by q quarter turns: (sin, cos)(a + q π/2) = (sin_a C + cos_a
+    // S, cos_a C - sin_a S) with (S, C) = (sin, cos)(q π/2) in {0, ±1},
+    // found by arithmetic on the bits of q (S = ±1 for odd q, C = ±1 for
+    // even q, the sign flipping every two quarters) instead of a four-way
+    // branch or a table, so that loops over many angles vectorise. The sum
+    // holds 2^22 + q in its mantissa, whose two low bits are those of q in
+    // two's complement. The products by 0 and ±1 are exact.
+    let bits = shifted.to_bits();
+    let odd = (bits & 1) as f32;
+    let sign = 1.0 - (bits & 2) as f32;
+    let (sin_q, cos_q) = (odd * sign, (1.0 - odd) * sign);
+    (sin_a * cos_q + cos_a * sin_q, cos_a * cos_q - sin_a * sin_q)
 }
 
 #[cfg(test)]

@@ -147,30 +147,37 @@ fn window(cdf: &[f32], start: usize) -> &[f32; GUIDE_WINDOW] {
 }
 
 /// The number of entries of a non-decreasing window that are `<= u`, for u
-/// not NaN.
-///
-/// On x86_64 this is two 4-wide compares (SSE2, part of the baseline) whose
-/// sign bits form a mask; the window is sorted, so the mask is a run of ones
-/// from bit 0 and the count is the position of its first zero. Elsewhere the
-/// entries are compared one by one.
+/// not NaN: the position of the first zero of [`window_mask`], which is a
+/// run of ones from bit 0 since the window is sorted.
 #[inline(always)]
 fn count_window(w: &[f32; GUIDE_WINDOW], u: f32) -> usize {
+    (!window_mask(w, u)).trailing_zeros() as usize
+}
+
+/// Bit i set where entry i of the window is `<= u` (none for a NaN u).
+///
+/// On x86_64 this is two 4-wide compares (SSE2, part of the baseline) whose
+/// sign bits form the mask; elsewhere the entries are compared one by one.
+#[inline(always)]
+fn window_mask(w: &[f32; GUIDE_WINDOW], u: f32) -> u32 {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_set1_ps};
         // SAFETY: SSE2 is enabled on every x86_64 target, and both loads
         // read four floats inside the eight of `w`.
-        let mask = unsafe {
+        unsafe {
             let uv = _mm_set1_ps(u);
             let lo = _mm_cmple_ps(_mm_loadu_ps(w.as_ptr()), uv);
             let hi = _mm_cmple_ps(_mm_loadu_ps(w.as_ptr().add(4)), uv);
             (_mm_movemask_ps(lo) | (_mm_movemask_ps(hi) << 4)) as u32
-        };
-        (!mask).trailing_zeros() as usize
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        w.iter().map(|&c| (c <= u) as usize).sum()
+        w.iter()
+            .enumerate()
+            .map(|(i, &c)| ((c <= u) as u32) << i)
+            .sum()
     }
 }
 
@@ -180,8 +187,8 @@ fn count_window(w: &[f32; GUIDE_WINDOW], u: f32) -> usize {
 /// The last entry of each block of eight is compared first: the blocks
 /// whose last entry is `<= u` are wholly counted, and only the next block
 /// is counted entry by entry ([`count_window`]). Both steps are fixed
-/// sequences of compares with no data-dependent branch, so a conditional of
-/// 32 cells costs three scalar and two 4-wide compares.
+/// sequences of compares with no data-dependent branch, so a row of 32
+/// costs three scalar and two 4-wide compares.
 #[inline(always)]
 pub(crate) fn count_linear(row: &[f32], u: f32) -> usize {
     let blocks = row.len() / GUIDE_WINDOW;
@@ -200,7 +207,7 @@ fn count_all(row: &[f32], u: f32) -> usize {
     row.iter().map(|&c| (c <= u) as usize).sum()
 }
 
-/// The longest conditional row searched by [`count_linear`].
+/// The longest row counted by [`count_linear`] or [`count_all`].
 pub(crate) const LINEAR_ROW: usize = 64;
 
 /// The cell of x in a uniform grid of `n` cells over [0, 1): floor(x n),
@@ -560,11 +567,25 @@ impl PiecewiseConstant2D {
             .collect()
     }
 
-    /// The column k of a clamped `u` in a row's conditional CDF: the number
+    /// The column k of a clamped `u` in row j's conditional CDF: the number
     /// of entries `<= u`. The last entry of a row is 1 > u, so counting the
     /// whole row equals counting all but its last entry.
+    ///
+    /// A row of up to [`search::WINDOW`] (32) entries is compared all at
+    /// once ([`search::count_window`]): its loads and compares are
+    /// independent, so a draw waits for one load, one compare and the
+    /// mask, where [`count_linear`] chains two loads and two compares. One
+    /// call at a time this made the uniform sampler's `sample` 2 to 3%
+    /// faster on the built-in nickel (15.8-16.0 to 16.3-16.4 M/s, best of
+    /// 10 runs of 10^6 calls, wo changing every call, five alternating
+    /// runs on a Zen 5 machine).
     #[inline(always)]
-    fn column(&self, row: &[f32], u: f32) -> usize {
+    fn column(&self, j: usize, u: f32) -> usize {
+        let nx = self.nx;
+        if nx <= search::WINDOW && self.conditional.len() >= search::WINDOW {
+            return search::count_window(&self.conditional, j * nx, nx, u);
+        }
+        let row = &self.conditional[j * nx..(j + 1) * nx];
         if row.len() <= LINEAR_ROW && row.len().is_multiple_of(GUIDE_WINDOW) {
             count_linear(row, u)
         } else if row.len() <= LINEAR_ROW {
@@ -609,10 +630,9 @@ impl Distribution2D for PiecewiseConstant2D {
     /// conditional with u.x; density ny (M_j - M_{j-1}) · nx (C_k - C_{k-1}).
     #[inline(always)]
     fn sample(&self, u: Vec2) -> Sample2D {
-        let nx = self.nx;
         let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
         let j = self.marginal_guide.count_at_or_below(&self.marginal, u.y);
-        let k = self.column(&self.conditional[j * nx..(j + 1) * nx], u.x);
+        let k = self.column(j, u.x);
         self.finish(j, k, u)
     }
 
@@ -687,7 +707,6 @@ impl PiecewiseConstant2D {
     fn sample_batch_lanes(&self, u: &[Vec2], out: &mut [Sample2D]) {
         let len = u.len().min(out.len());
         let (u, out) = (&u[..len], &mut out[..len]);
-        let nx = self.nx;
         let mut u_chunks = u.chunks_exact(LANES);
         let mut out_chunks = out.chunks_exact_mut(LANES);
         for (uc, oc) in (&mut u_chunks).zip(&mut out_chunks) {
@@ -701,7 +720,7 @@ impl PiecewiseConstant2D {
             }
             let mut k = [0usize; LANES];
             for ((k, &j), u) in k.iter_mut().zip(&j).zip(&ul) {
-                *k = self.column(&self.conditional[j * nx..(j + 1) * nx], u.x);
+                *k = self.column(j, u.x);
             }
             self.finish_lanes(&j, &k, &ul, oc);
         }
@@ -872,7 +891,7 @@ impl PiecewiseConstant2D {
             }
             let mut k = [0usize; LANES];
             for (((k, &j), u), d) in k.iter_mut().zip(&j).zip(&ul).zip(dc) {
-                *k = d.column(&d.conditional[j * d.nx..(j + 1) * d.nx], u.x);
+                *k = d.column(j, u.x);
             }
             for (l, (o, d)) in oc.iter_mut().zip(dc).enumerate() {
                 *o = d.finish(j[l], k[l], ul[l]);
@@ -1201,6 +1220,20 @@ mod tests {
                 let expected = cdf[..n - 1].partition_point(|&c| c <= u);
                 prop_assert_eq!(d.guide.count_at_or_below(cdf, u), expected, "u {}", u);
             }
+        }
+
+        /// The short-row count gives the number of entries `<= u` of a
+        /// sorted row of 8 to 64 entries, for u below, inside, on and above
+        /// its entries, and 0 for NaN.
+        #[test]
+        fn short_row_counts_match_partition_point(values in prop::collection::vec(0.0f32..1.0, 64), blocks in 1usize..=8, u in prop::collection::vec(-0.5f32..1.5, 8)) {
+            let mut row = values[..blocks * GUIDE_WINDOW].to_vec();
+            row.sort_by(f32::total_cmp);
+            for u in u.iter().copied().chain(row.iter().copied()).chain([f32::MAX]) {
+                let expected = row.partition_point(|&c| c <= u);
+                prop_assert_eq!(count_linear(&row, u), expected, "u {}", u);
+            }
+            prop_assert_eq!(count_linear(&row, f32::NAN), 0);
         }
 
         /// `sample_batch` returns exactly what `sample` does, in full stages

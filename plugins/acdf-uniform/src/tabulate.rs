@@ -26,7 +26,7 @@
 //! [`validate_table`](acdf_core::validate_table).
 
 use crate::Resolution;
-use acdf_core::fast::{fast_atan2, sin_cos_turns};
+use acdf_core::fast::{fast_atan2, sin_cos_quarter_turns};
 use acdf_core::geometry::{reflect, spherical_direction};
 use acdf_core::{Brdf, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
@@ -144,9 +144,9 @@ impl HalfMap {
     /// vectorise. The two maps below compute both formulas and select one.
     #[inline(always)]
     pub fn angles(&self, v: f32) -> (f32, f32) {
-        // θ_h = (π/2) v² is v²/4 of a turn.
         if v >= self.v1 {
-            sin_cos_turns(0.25 * v * v)
+            // θ_h = (π/2) v² is v² quarter turns.
+            sin_cos_quarter_turns(v * v)
         } else {
             let one_minus_cos = (v / self.v1) * self.one_minus_cos1;
             let cos_cap = 1.0 - one_minus_cos;
