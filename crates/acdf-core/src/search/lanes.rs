@@ -220,10 +220,12 @@ impl<T> Source for Shared<T> {
 
     #[inline(always)]
     unsafe fn gather_pairs(&self, _g: usize, index: __m256i) -> (__m256, __m256) {
-        let mut at = [0i32; 8];
+        // Unsigned: the indices are never negative, and a u32 widens to an
+        // address for free where an i32 takes a sign extension per lane.
+        let mut at = [0u32; 8];
         _mm256_storeu_si256(at.as_mut_ptr() as *mut __m256i, index);
         let entries = self.0 as *const f32;
-        load_pairs_at(|l| entries.offset(at[l] as isize))
+        load_pairs_at(|l| entries.add(at[l] as usize))
     }
 }
 
