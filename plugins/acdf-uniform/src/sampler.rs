@@ -646,11 +646,21 @@ impl ThetaOCells {
     }
 
     /// The cell of cos θ_o = z, in [0, n).
+    ///
+    /// The slice, and so every table read of a draw, waits for this count.
+    /// At 32 θ_o cells the bounds fill one window of
+    /// [`acdf_core::search::count_window`], compared all at once: `sample`
+    /// one call at a time ran 2 to 5% faster than with the two-level
+    /// [`count_linear`] (uniform 15.8-16.3 to 16.5-16.9 M/s, built-in
+    /// nickel, wo changing every call, best of 10 runs of 10^6 calls, four
+    /// alternating runs on a Zen 5 machine).
     #[inline(always)]
     fn cell(&self, z: f32) -> usize {
         // -NaN compares false with everything: cell 0.
         let bounds = &self.negative_cos_bounds;
-        if bounds.len() <= LINEAR_ROW {
+        if bounds.len() == acdf_core::search::WINDOW {
+            acdf_core::search::count_window(bounds, 0, bounds.len(), -z)
+        } else if bounds.len() <= LINEAR_ROW {
             count_linear(bounds, -z)
         } else {
             count_at_or_below(bounds, -z)
