@@ -147,37 +147,30 @@ fn window(cdf: &[f32], start: usize) -> &[f32; GUIDE_WINDOW] {
 }
 
 /// The number of entries of a non-decreasing window that are `<= u`, for u
-/// not NaN: the position of the first zero of [`window_mask`], which is a
-/// run of ones from bit 0 since the window is sorted.
-#[inline(always)]
-fn count_window(w: &[f32; GUIDE_WINDOW], u: f32) -> usize {
-    (!window_mask(w, u)).trailing_zeros() as usize
-}
-
-/// Bit i set where entry i of the window is `<= u` (none for a NaN u).
+/// not NaN.
 ///
 /// On x86_64 this is two 4-wide compares (SSE2, part of the baseline) whose
-/// sign bits form the mask; elsewhere the entries are compared one by one.
+/// sign bits form a mask; the window is sorted, so the mask is a run of ones
+/// from bit 0 and the count is the position of its first zero. Elsewhere the
+/// entries are compared one by one.
 #[inline(always)]
-fn window_mask(w: &[f32; GUIDE_WINDOW], u: f32) -> u32 {
+fn count_window(w: &[f32; GUIDE_WINDOW], u: f32) -> usize {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_set1_ps};
         // SAFETY: SSE2 is enabled on every x86_64 target, and both loads
         // read four floats inside the eight of `w`.
-        unsafe {
+        let mask = unsafe {
             let uv = _mm_set1_ps(u);
             let lo = _mm_cmple_ps(_mm_loadu_ps(w.as_ptr()), uv);
             let hi = _mm_cmple_ps(_mm_loadu_ps(w.as_ptr().add(4)), uv);
             (_mm_movemask_ps(lo) | (_mm_movemask_ps(hi) << 4)) as u32
-        }
+        };
+        (!mask).trailing_zeros() as usize
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        w.iter()
-            .enumerate()
-            .map(|(i, &c)| ((c <= u) as u32) << i)
-            .sum()
+        w.iter().map(|&c| (c <= u) as usize).sum()
     }
 }
 

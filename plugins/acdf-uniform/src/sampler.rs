@@ -847,7 +847,7 @@ impl TableCoordinates {
 ///
 /// The full normalisation is computed only on its branch: a select would
 /// make every call wait for its square root and division, which lie on the
-/// chain that ends in wi. One call at a time, `sample` ran 5 to 7% faster
+/// chain that ends in wi. One call at a time, `sample` ran 5 to 8% faster
 /// this way on the built-in nickel (isotropic resolution, wo changing every
 /// call, best of 10 runs of 10^6 draws, three runs on a Zen 5 machine). In
 /// the batch loops the compiler still turns the branch into a select, so
