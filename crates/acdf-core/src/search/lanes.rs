@@ -32,6 +32,12 @@ use std::arch::x86_64::*;
 /// uniform and 94-98 for the adaptive distribution, eight 96-127 and 65-92
 /// (best of 40 runs of 10^6 draws, one thread, several runs each); in a
 /// first version of the search, two groups gave 80 M/s and twelve under 50.
+/// On a Zen 5 machine (same measure, two runs each) two, three, four, six
+/// and eight groups gave 149, 198, 215-230, 255-262 and 233-245 M/s for the
+/// uniform distribution and 152, 195-197, 206-214, 209-220 and 199-204 for
+/// the adaptive one. Six would suit that machine's uniform batches; it was
+/// not measured on the Zen 3 machine, where eight lost up to a quarter, so
+/// four stays until both kinds agree.
 pub const GROUPS: usize = 4;
 
 /// Draws per stage, [`GROUPS`] × 8.
@@ -311,8 +317,11 @@ impl Source for PerLane {
 /// measured on, a batch of the adaptive 2D distribution (three pair reads
 /// per draw) ran at 118-123 M/s with these against 115-117 M/s with two
 /// 64-bit gather instructions per eight pairs (best of 40 runs of 10^6
-/// draws, built-in nickel, several runs each). Single entries keep the
-/// gather instruction: eight loads measured no faster for them.
+/// draws, built-in nickel, several runs each). On a Zen 5 machine the loads
+/// still win: 207-214 M/s against 191-194 with two 32-bit gathers per
+/// eight pairs and 199-209 with two 64-bit ones (same measure, three runs
+/// each). Single entries keep the gather instruction: eight loads measured
+/// no faster for them.
 ///
 /// # Safety
 /// AVX2; each `entry(l)` and the entry after it are readable.
