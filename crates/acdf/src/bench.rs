@@ -95,7 +95,7 @@ pub struct BenchReport {
     /// The processor the figures were measured on: its model name (Linux
     /// `/proc/cpuinfo`; `unknown` elsewhere), then its family and model
     /// numbers and the vector extensions the batch paths can use, e.g.
-    /// `AMD EPYC (family 26, model 2), avx2`. The same binary gave rates
+    /// `AMD EPYC (family 26, model 2), avx2, avx512f`. The same binary gave rates
     /// twice as high on one machine kind as on another, so a figure means
     /// little without it.
     pub cpu: String,

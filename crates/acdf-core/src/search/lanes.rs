@@ -36,7 +36,7 @@ use std::arch::x86_64::*;
 /// and eight groups gave 149, 198, 215-230, 255-262 and 233-245 M/s for the
 /// uniform distribution and 152, 195-197, 206-214, 209-220 and 199-204 for
 /// the adaptive one. Six would suit that machine's uniform batches; it was
-/// not measured on the Zen 3 machine, where eight lost up to a quarter, so
+/// not measured on the Zen 3 machine, where eight lost up to a third, so
 /// four stays until both kinds agree.
 pub const GROUPS: usize = 4;
 
