@@ -89,6 +89,24 @@ pub fn truncate_i32(v: f32) -> i32 {
     unsafe { v.to_int_unchecked::<i32>() }
 }
 
+/// floor(t) clamped to [0, top] for an integer-valued `top` in [0, 2^24]:
+/// the cell of a scaled coordinate t = x n on a grid whose last cell is
+/// `top` = n - 1. NaN and negative t give 0, t beyond `top` (+∞ included)
+/// gives `top`, exactly as `(t as u32 as usize).min(top)` would.
+///
+/// The saturating `as u32` costs a conversion, two compares and two
+/// conditional moves, and the `min` two more instructions; clamping in
+/// `f32` first (two selects in the operand order of `maxss`/`minss`, so
+/// that NaN loses) leaves one unchecked conversion. Since `top` is an
+/// integer, flooring the clamped value equals clamping the floor.
+#[inline(always)]
+pub fn grid_cell(t: f32, top: f32) -> usize {
+    let t = if t > 0.0 { t } else { 0.0 };
+    let t = if t < top { t } else { top };
+    // SAFETY: t is finite and in [0, 2^24], inside u32's range.
+    unsafe { t.to_int_unchecked::<u32>() as usize }
+}
+
 /// (sin 2πt, cos 2πt) for an angle t in turns: [`sin_cos_quarter_turns`]
 /// of 4t (exact, a power-of-two scaling).
 #[inline(always)]
@@ -100,6 +118,12 @@ pub fn sin_cos_turns(t: f32) -> (f32, f32) {
 /// again, it leaves the value rounded to the nearest integer (ties to even),
 /// since the sum's unit in the last place is 1.
 const ROUND_TO_INTEGER: f32 = 12_582_912.0;
+
+/// Taylor coefficients of sin(a) / a in powers of a², to a⁸ (degree 9).
+const SIN_TAYLOR: [f32; 5] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0];
+
+/// Taylor coefficients of cos(a) in powers of a², to a⁸.
+const COS_TAYLOR: [f32; 5] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0];
 
 /// (sin(πs/2), cos(πs/2)) for an angle s in quarter turns, without a libm
 /// call: the nearest quarter turn q is split off exactly and the rest (at
@@ -130,11 +154,9 @@ pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
     // a single draw waits on.
     let a2 = a * a;
     let a4 = a2 * a2;
-    let sin_a = a
-        * ((1.0 + a2 * (-1.0 / 6.0))
-            + a4 * ((1.0 / 120.0 + a2 * (-1.0 / 5040.0)) + a4 * (1.0 / 362_880.0)));
-    let cos_a =
-        (1.0 + a2 * -0.5) + a4 * ((1.0 / 24.0 + a2 * (-1.0 / 720.0)) + a4 * (1.0 / 40_320.0));
+    let estrin = |c: &[f32; 5]| (c[0] + a2 * c[1]) + a4 * ((c[2] + a2 * c[3]) + a4 * c[4]);
+    let sin_a = a * estrin(&SIN_TAYLOR);
+    let cos_a = estrin(&COS_TAYLOR);
     // Rotate by q quarter turns: (sin, cos)(a + q π/2) = (sin_a C + cos_a
     // S, cos_a C - sin_a S) with (S, C) = (sin, cos)(q π/2) in {0, ±1},
     // found by arithmetic on the bits of q (S = ±1 for odd q, C = ±1 for
@@ -147,6 +169,77 @@ pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
     let sign = 1.0 - (bits & 2) as f32;
     let (sin_q, cos_q) = (odd * sign, (1.0 - odd) * sign);
     (sin_a * cos_q + cos_a * sin_q, cos_a * cos_q - sin_a * sin_q)
+}
+
+/// [`sin_cos_quarter_turns`] of two angles at once, bit for bit:
+/// ((sin, cos)(π s0 / 2), (sin, cos)(π s1 / 2)).
+///
+/// A sampler's draw needs the sine and cosine of both half-vector angles.
+/// Where the CPU has SSE2 (every x86-64) the four values are the four lanes
+/// of one register, each lane running the scalar operations of its value
+/// in the same order, so that one call costs about half the instructions
+/// of two scalar calls while a loop over many draws can keep the scalar
+/// form and still get the same bits. In the uniform sampler's `sample` it
+/// took the function from 555 to 507 instructions per call (callgrind,
+/// built-in nickel, wo changing every call, 10^5 calls).
+#[inline(always)]
+pub fn sin_cos_quarter_turns_pair(s0: f32, s1: f32) -> ((f32, f32), (f32, f32)) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: SSE2 is part of the x86-64 baseline.
+        unsafe { sin_cos_pair_sse2(s0, s1) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        (sin_cos_quarter_turns(s0), sin_cos_quarter_turns(s1))
+    }
+}
+
+/// [`sin_cos_quarter_turns_pair`] in the lanes (sin s0, cos s0, sin s1,
+/// cos s1).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn sin_cos_pair_sse2(s0: f32, s1: f32) -> ((f32, f32), (f32, f32)) {
+    use std::arch::x86_64::*;
+    // Lane k of the result holds the sine (even k) or cosine (odd k).
+    let lanes = |sin: f32, cos: f32| _mm_setr_ps(sin, cos, sin, cos);
+    let s = _mm_setr_ps(s0, s0, s1, s1);
+    let round = _mm_set1_ps(ROUND_TO_INTEGER);
+    let shifted = _mm_add_ps(s, round);
+    let q = _mm_sub_ps(shifted, round);
+    let a = _mm_mul_ps(_mm_sub_ps(s, q), _mm_set1_ps(FRAC_PI_2));
+    let a2 = _mm_mul_ps(a, a);
+    let a4 = _mm_mul_ps(a2, a2);
+    let c = |k: usize| lanes(SIN_TAYLOR[k], COS_TAYLOR[k]);
+    let estrin = _mm_add_ps(
+        _mm_add_ps(c(0), _mm_mul_ps(a2, c(1))),
+        _mm_mul_ps(
+            a4,
+            _mm_add_ps(_mm_add_ps(c(2), _mm_mul_ps(a2, c(3))), _mm_mul_ps(a4, c(4))),
+        ),
+    );
+    // The sine lanes take the factor a, the cosine lanes 1 (exact).
+    let one = _mm_set1_ps(1.0);
+    let factor = _mm_unpacklo_ps(_mm_shuffle_ps::<0b10_00_10_00>(a, a), one);
+    let unrotated = _mm_mul_ps(estrin, factor);
+    // The quarter-turn rotation of the scalar form: S and C from the bits
+    // of the sum, then sin = sin_a C + cos_a S and cos = cos_a C + sin_a
+    // (-S) in the lanes, which is cos_a C - sin_a S exactly.
+    let bits = _mm_castps_si128(shifted);
+    let odd = _mm_cvtepi32_ps(_mm_and_si128(bits, _mm_set1_epi32(1)));
+    let two = _mm_cvtepi32_ps(_mm_and_si128(bits, _mm_set1_epi32(2)));
+    let sign = _mm_sub_ps(one, two);
+    let sin_q = _mm_mul_ps(odd, sign);
+    let cos_q = _mm_mul_ps(_mm_sub_ps(one, odd), sign);
+    let negate_in_cosine_lanes = lanes(0.0, -0.0);
+    let swapped = _mm_shuffle_ps::<0b10_11_00_01>(unrotated, unrotated);
+    let rotated = _mm_add_ps(
+        _mm_mul_ps(unrotated, cos_q),
+        _mm_mul_ps(swapped, _mm_xor_ps(sin_q, negate_in_cosine_lanes)),
+    );
+    let mut out = [0.0f32; 4];
+    _mm_storeu_ps(out.as_mut_ptr(), rotated);
+    ((out[0], out[1]), (out[2], out[3]))
 }
 
 #[cfg(test)]
@@ -177,6 +270,53 @@ mod tests {
         assert_eq!(truncate_i32(f32::INFINITY), 1 << 30);
         assert_eq!(truncate_i32(f32::NEG_INFINITY), -(1 << 30));
         assert_eq!(truncate_i32(f32::NAN), -(1 << 30));
+    }
+
+    /// The paired sine/cosine is bit for bit two calls of the scalar one,
+    /// over several turns, at the quarter-turn ties and for non-finite
+    /// input.
+    #[test]
+    fn paired_sine_cosine_equals_two_calls() {
+        let mut angles: Vec<f32> = (0..=20_000).map(|k| k as f32 / 1000.0 - 8.0).collect();
+        angles.extend([0.5, -0.5, 1.5, 2.5, 3.5, 1e-30, -0.0, 7.999_999, 1e6]);
+        angles.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY]);
+        let bits = |(s, c): (f32, f32)| (s.to_bits(), c.to_bits());
+        for (i, &s0) in angles.iter().enumerate() {
+            let s1 = angles[(i * 7919 + 13) % angles.len()];
+            let (first, second) = sin_cos_quarter_turns_pair(s0, s1);
+            assert_eq!(bits(first), bits(sin_cos_quarter_turns(s0)), "{s0}");
+            assert_eq!(bits(second), bits(sin_cos_quarter_turns(s1)), "{s1}");
+        }
+    }
+
+    /// The clamped floor agrees with the saturating cast and `min` it
+    /// replaces, at the edges, beyond them and for NaN.
+    #[test]
+    fn grid_cell_matches_the_saturating_cast() {
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            -1e-30,
+            -7.5,
+            0.999_999_9,
+            1.0,
+            30.999_998,
+            31.0,
+            31.5,
+            32.0,
+            1e9,
+            5e9,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        values.extend((0..4000).map(|k| (k as f32 - 500.0) * 0.013));
+        for top in [0usize, 1, 31, 255, 1 << 24] {
+            for &t in &values {
+                let expected = (t as u32 as usize).min(top);
+                assert_eq!(grid_cell(t, top as f32), expected, "t {t}, top {top}");
+            }
+        }
     }
 
     /// The polynomial arctangent and sine/cosine are within their stated

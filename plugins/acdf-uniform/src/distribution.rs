@@ -36,6 +36,7 @@
 use crate::persist::{ByteReader, ByteWriter, Persist, PersistError};
 #[cfg(target_arch = "x86_64")]
 mod gather;
+use acdf_core::fast::grid_cell;
 use acdf_core::search;
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
@@ -103,11 +104,11 @@ impl Guide {
         guide
     }
 
-    /// cell(u) = min(floor(u G), G - 1); `as u32` saturates NaN and
-    /// negatives to 0.
+    /// cell(u) = min(floor(u G), G - 1); NaN and negatives give 0
+    /// ([`grid_cell`]).
     #[inline(always)]
     fn cell(&self, u: f32) -> usize {
-        ((u * self.scale) as u32 as usize).min(self.lo.len() - 2)
+        grid_cell(u * self.scale, self.scale - 1.0)
     }
 
     /// Heap bytes of the index.
@@ -208,8 +209,9 @@ pub(crate) const LINEAR_ROW: usize = 64;
 /// as `f32` (exact, since n <= [`MAX_CELLS`]).
 #[inline(always)]
 fn cell_of(x: f32, n: usize, nf: f32) -> usize {
-    // `as u32` saturates, so negative and NaN give 0.
-    ((x * nf) as u32 as usize).min(n - 1)
+    debug_assert_eq!(nf, n as f32);
+    // Negative and NaN give 0.
+    grid_cell(x * nf, nf - 1.0)
 }
 
 /// Fill `cdf` (length n) with the normalised running sums of `values`, in
@@ -540,7 +542,7 @@ impl PiecewiseConstant2D {
     /// p = ny (M_j - M_{j-1}) · nx (C_k - C_{k-1}); 0 out of range. When both
     /// probabilities are positive the product is at least the smallest
     /// positive `f32`, so a cell that can be drawn never reports 0.
-    #[inline]
+    #[inline(always)]
     pub fn cell_pdf(&self, ix: usize, iy: usize) -> f32 {
         if ix >= self.nx || iy >= self.ny {
             return 0.0;
@@ -646,7 +648,7 @@ impl Distribution2D for PiecewiseConstant2D {
     }
 
     /// p(x, y) of the cell (floor(x nx), floor(y ny)); 0 outside [0, 1)^2.
-    #[inline]
+    #[inline(always)]
     fn pdf(&self, p: Vec2) -> f32 {
         if !((0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y)) {
             return 0.0;

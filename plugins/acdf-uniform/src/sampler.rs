@@ -203,7 +203,11 @@ pub type UniformBrdfSampler = TabulatedBrdfSampler<PiecewiseConstantBuilder>;
 ///   rad), the same in `sample` and `pdf`, and the θ_o cell is counted
 ///   from cos θ_o without an arctangent. One call is a chain of dependent
 ///   steps (cell, two searches, trigonometry, reflection); where the CPU
-///   has AVX2 it runs a copy compiled for it. The batch entry points
+///   has AVX2 it runs a copy compiled for it, and `sample` computes the
+///   sines and cosines of both half-vector angles in the lanes of one
+///   register
+///   ([`sin_cos_quarter_turns_pair`](acdf_core::fast::sin_cos_quarter_turns_pair),
+///   bit for bit the scalar form the batch loops use). The batch entry points
 ///   overlap many draws instead: `sample_batch` and `pdf_batch` (one wo)
 ///   and `sample_each` and `pdf_each` (one wo per pair) search a chunk of
 ///   draws, then compute the geometry of the whole chunk as SIMD lanes (see
@@ -577,32 +581,72 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         self.pdf_in(self.slice_for_mix(wo).as_ref(), wo, wi)
     }
 
+    /// [`sample_one`](Self::sample_one) for CPUs without AVX2, out of line
+    /// so that `sample` itself stays a feature test and a call: inlined
+    /// into the caller, without a stack frame of its own.
+    #[inline(never)]
+    fn sample_portable(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        self.sample_one(wo, u)
+    }
+
+    /// [`pdf_one`](Self::pdf_one) for CPUs without AVX2, out of line (see
+    /// [`sample_portable`](Self::sample_portable)).
+    #[inline(never)]
+    fn pdf_portable(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.pdf_one(wo, wi)
+    }
+
     /// [`sample_one`](Self::sample_one) compiled for AVX2: the same IEEE
     /// operations (no fused multiply-adds are formed), in three-operand
     /// instructions with blends for the selects. The common path of a
     /// table draw is inlined (`#[inline(always)]` down to the builder's
     /// draw and box test) so that all of it is compiled so: callgrind
-    /// counts 668 instructions per uniform `sample` on the built-in
+    /// counted 668 instructions per uniform `sample` on the built-in
     /// nickel, wo changing every call, against 767 when the draw was an
     /// out-of-line baseline function.
     ///
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn sample_avx2(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        self.sample_one(wo, u)
-    }
-
-    /// [`pdf_one`](Self::pdf_one) compiled for AVX2 (see
-    /// [`sample_avx2`](Self::sample_avx2)).
+    /// wo and u arrive as five `f32` in registers. Passed as `Vec3` and
+    /// `Vec2` they went through the stack, and where the caller stored
+    /// them in pieces (8 + 4 bytes) and this function loaded 8 bytes
+    /// across both, the load waited for the stores to retire instead of
+    /// being forwarded, at the head of the call's chain: with `sample`
+    /// inlined into a loop that pattern took the uniform sampler from
+    /// 16.5 to 11 M/s, and `pdf` from 28 to 16 (built-in nickel, a scratch
+    /// loop of the bench's calls, best of 10 runs of 10^6, on a Zen 5
+    /// machine).
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn pdf_avx2(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.pdf_one(wo, wi)
+    unsafe fn sample_avx2(
+        &self,
+        wo_x: f32,
+        wo_y: f32,
+        wo_z: f32,
+        u_x: f32,
+        u_y: f32,
+    ) -> Option<BxdfSample> {
+        self.sample_one(Vec3::new(wo_x, wo_y, wo_z), Vec2::new(u_x, u_y))
+    }
+
+    /// [`pdf_one`](Self::pdf_one) compiled for AVX2, wo and wi in
+    /// registers (see [`sample_avx2`](Self::sample_avx2)).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn pdf_avx2(
+        &self,
+        wo_x: f32,
+        wo_y: f32,
+        wo_z: f32,
+        wi_x: f32,
+        wi_y: f32,
+        wi_z: f32,
+    ) -> f32 {
+        self.pdf_one(Vec3::new(wo_x, wo_y, wo_z), Vec3::new(wi_x, wi_y, wi_z))
     }
 }
 
@@ -697,10 +741,10 @@ impl<D> Slice<'_, D> {
         }
     }
 
-    /// See [`SliceGeometry::draw`].
+    /// See [`SliceGeometry::draw_one`].
     #[inline(always)]
     fn draw(&self, wo: Vec3, s: Sample2D) -> TableDraw {
-        self.geometry().draw(wo, s)
+        self.geometry().draw_one(wo, s)
     }
 
     /// See [`SliceGeometry::coordinates_of`].
@@ -722,8 +766,24 @@ impl SliceGeometry {
     /// (θ_h, φ_h) = ((π/2) v², 2π x) rotated, and its sin θ_h.
     #[inline(always)]
     fn half_of(&self, p: Vec2) -> (Vec3, f32) {
-        let (sin_t, cos_t) = self.map.angles(p.y);
-        let (sin_p, cos_p) = sin_cos_turns(p.x);
+        self.half_from_angles(self.map.angles(p.y), sin_cos_turns(p.x))
+    }
+
+    /// [`half_of`](Self::half_of), bit for bit, with the two angles'
+    /// sines and cosines computed together
+    /// ([`HalfMap::angles_and_azimuth`]): the form for one draw at a time.
+    #[inline(always)]
+    fn half_of_one(&self, p: Vec2) -> (Vec3, f32) {
+        let (polar, azimuth) = self.map.angles_and_azimuth(p.y, p.x);
+        self.half_from_angles(polar, azimuth)
+    }
+
+    /// The half vector with polar angle (sin, cos) = `polar` and azimuth
+    /// (sin, cos) = `azimuth` in the slice's axes, rotated into the
+    /// shading frame, and its sin θ_h.
+    #[inline(always)]
+    fn half_from_angles(&self, polar: (f32, f32), azimuth: (f32, f32)) -> (Vec3, f32) {
+        let ((sin_t, cos_t), (sin_p, cos_p)) = (polar, azimuth);
         let local = Vec2::new(sin_t * cos_p, sin_t * sin_p);
         let r = self.rotation;
         let h = Vec3::new(
@@ -747,7 +807,20 @@ impl SliceGeometry {
     /// path's loop over a chunk of draws compiles to SIMD.
     #[inline(always)]
     fn draw(&self, wo: Vec3, s: Sample2D) -> TableDraw {
-        let (h, sin_h) = self.half_of(s.p);
+        self.draw_from_half(wo, s, self.half_of(s.p))
+    }
+
+    /// [`draw`](Self::draw), bit for bit, for one draw at a time (see
+    /// [`half_of_one`](Self::half_of_one)).
+    #[inline(always)]
+    fn draw_one(&self, wo: Vec3, s: Sample2D) -> TableDraw {
+        self.draw_from_half(wo, s, self.half_of_one(s.p))
+    }
+
+    /// [`draw`](Self::draw) once the half vector and its sin θ_h are known.
+    #[inline(always)]
+    fn draw_from_half(&self, wo: Vec3, s: Sample2D, half: (Vec3, f32)) -> TableDraw {
+        let (h, sin_h) = half;
         let wo_h = wo.dot(h);
         let wi = unit_reflection(wo, h);
         let denominator = self.map.jacobian(s.p.y, sin_h) * 4.0 * wo_h;
@@ -902,9 +975,9 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
         #[cfg(target_arch = "x86_64")]
         if batch::has_avx2() {
             // SAFETY: the CPU has just been found to support AVX2 and FMA.
-            return unsafe { self.sample_avx2(wo, u) };
+            return unsafe { self.sample_avx2(wo.x, wo.y, wo.z, u.x, u.y) };
         }
-        self.sample_one(wo, u)
+        self.sample_portable(wo, u)
     }
 
     /// The mixed density at wi, 0 for an invalid wo, a non-finite wi or wi at
@@ -913,9 +986,9 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
         #[cfg(target_arch = "x86_64")]
         if batch::has_avx2() {
             // SAFETY: the CPU has just been found to support AVX2 and FMA.
-            return unsafe { self.pdf_avx2(wo, wi) };
+            return unsafe { self.pdf_avx2(wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
         }
-        self.pdf_one(wo, wi)
+        self.pdf_portable(wo, wi)
     }
 
     /// [`sample`](BxdfSampler::sample) for each u, finding the slice once.
