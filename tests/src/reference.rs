@@ -174,7 +174,7 @@ impl PiecewiseConstant1D {
         ((x as f64 * self.len() as f64) as usize).min(self.len() - 1)
     }
 
-    /// The probability mass of cell k: cdf[k + 1] - cdf[k].
+    /// The probability mass of cell k: `cdf[k + 1] - cdf[k]`.
     #[inline]
     pub fn mass(&self, k: usize) -> f64 {
         self.cdf[k + 1] - self.cdf[k]
@@ -187,7 +187,7 @@ impl PiecewiseConstant1D {
         (self.cdf.partition_point(|&c| c <= u).max(1) - 1).min(self.len() - 1)
     }
 
-    /// x = (k + t) / n inside cell `k`, t = (u - cdf[k]) / mass, kept inside
+    /// `x = (k + t) / n` inside cell `k`, `t = (u - cdf[k]) / mass`, kept inside
     /// the cell after rounding to f32.
     #[inline]
     pub fn position_in_cell(&self, k: usize, u: f64) -> f32 {

@@ -132,7 +132,7 @@ const COS_TAYLOR: [f32; 5] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.
 /// reduction is exact for |s| < 8, so the error is that of `f32` rounding,
 /// a few 1e-8 absolute.
 ///
-/// q comes from adding and removing [`ROUND_TO_INTEGER`], and its low bits
+/// q comes from adding and removing 1.5 · 2^23, and its low bits
 /// from the bits of the sum, rather than from a conversion to an integer
 /// and back: two additions instead of a clamp and two conversions on the
 /// chain every draw's direction waits for, and no conversion at all in a

@@ -713,7 +713,7 @@ impl AdaptiveCdf2D {
     /// of each draw in its own distribution: exactly
     /// `dists[k].sample_and_same_segment(u[k], margin)`. Where the CPU has
     /// AVX2 the draws go 32 at a time in SIMD lanes, each lane
-    /// reading its own distribution (`dist/gather.rs`); elsewhere [`LANES`]
+    /// reading its own distribution (`dist/gather.rs`); elsewhere eight (`LANES`)
     /// at a time in scalar stages (marginal segments, conditional segments,
     /// then positions), so that the searches of different slices overlap.
     /// Entries beyond the shortest of the four lengths are left alone.
@@ -808,7 +808,7 @@ impl AdaptiveCdf2D {
 
 impl AdaptiveCdf2D {
     /// `dists[k].pdf(p[k])` for every k (the slices of a batch of shading
-    /// points), bit for bit, [`LANES`] at a time in stages (marginal
+    /// points), bit for bit, eight (`LANES`) at a time in stages (marginal
     /// segments, conditional segments, densities) so that the searches of
     /// different slices overlap; where the CPU has AVX2, 32 at a time
     /// in SIMD lanes, each lane reading its own distribution
