@@ -92,18 +92,24 @@ pub fn truncate_i32(v: f32) -> i32 {
 /// floor(t) clamped to [0, top] for an integer-valued `top` in [0, 2^24]:
 /// the cell of a scaled coordinate t = x n on a grid whose last cell is
 /// `top` = n - 1. NaN and negative t give 0, t beyond `top` (+∞ included)
-/// gives `top`, exactly as `(t as u32 as usize).min(top)` would.
+/// gives `top`, exactly as `(t as u32 as usize).min(top)` would. Any other
+/// `top` (negative, larger, NaN) still gives a cell in [0, 2^24].
 ///
 /// The saturating `as u32` costs a conversion, two compares and two
 /// conditional moves, and the `min` two more instructions; clamping in
-/// `f32` first (two selects in the operand order of `maxss`/`minss`, so
-/// that NaN loses) leaves one unchecked conversion. Since `top` is an
-/// integer, flooring the clamped value equals clamping the floor.
+/// `f32` first (selects in the operand order of `maxss`/`minss`, so that
+/// NaN loses) leaves one unchecked conversion. Since `top` is an integer,
+/// flooring the clamped value equals clamping the floor.
 #[inline(always)]
 pub fn grid_cell(t: f32, top: f32) -> usize {
+    const LARGEST: f32 = 16_777_216.0;
+    // Kept in [0, 2^24] whatever it is (NaN included); off the chain from t.
+    let top = if top < LARGEST { top } else { LARGEST };
+    let top = if top > 0.0 { top } else { 0.0 };
     let t = if t > 0.0 { t } else { 0.0 };
     let t = if t < top { t } else { top };
-    // SAFETY: t is finite and in [0, 2^24], inside u32's range.
+    // SAFETY: whatever t and top were, t is now in [0, 2^24], inside u32's
+    // range.
     unsafe { t.to_int_unchecked::<u32>() as usize }
 }
 
@@ -315,6 +321,12 @@ mod tests {
             for &t in &values {
                 let expected = (t as u32 as usize).min(top);
                 assert_eq!(grid_cell(t, top as f32), expected, "t {t}, top {top}");
+            }
+        }
+        // A top outside its range is not undefined behaviour.
+        for top in [-1.0, 1e12, f32::INFINITY, f32::NAN] {
+            for &t in &values {
+                assert!(grid_cell(t, top) <= 1 << 24, "t {t}, top {top}");
             }
         }
     }
