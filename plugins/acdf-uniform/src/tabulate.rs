@@ -140,31 +140,10 @@ impl HalfMap {
     }
 
     /// (sin θ_h, cos θ_h) for the row coordinate v in [0, 1].
-    ///
-    /// Only the formula of v's side of the cap is computed: one draw at a
-    /// time, the cap's division and square root would otherwise delay
-    /// every draw's angles (`sample` ran 2 to 4% faster with the branch,
-    /// measured as for `unit_reflection` in the sampler), and in the batch
-    /// loops the compiler makes the branch a select, so they still
-    /// vectorise. The two maps below compute both formulas and select one.
     #[inline(always)]
     pub fn angles(&self, v: f32) -> (f32, f32) {
-        if v >= self.v1 {
-            // θ_h = (π/2) v² is v² quarter turns.
-            sin_cos_quarter_turns(v * v)
-        } else {
-            self.cap_angles(v)
-        }
-    }
-
-    /// (sin θ_h, cos θ_h) of the cap map, for v below v_1.
-    #[inline(always)]
-    fn cap_angles(&self, v: f32) -> (f32, f32) {
-        let one_minus_cos = (v / self.v1) * self.one_minus_cos1;
-        let cos_cap = 1.0 - one_minus_cos;
-        // sin² = (1 - cos)(1 + cos), exact near the pole.
-        let sin_cap = (one_minus_cos * (1.0 + cos_cap)).max(0.0).sqrt();
-        (sin_cap, cos_cap)
+        // θ_h = (π/2) v² is v² quarter turns.
+        self.polar(v, || sin_cos_quarter_turns(v * v))
     }
 
     /// ([`angles`](Self::angles) of v, (sin 2πx, cos 2πx)) with the two
@@ -176,12 +155,28 @@ impl HalfMap {
     pub fn angles_and_azimuth(&self, v: f32, x: f32) -> ((f32, f32), (f32, f32)) {
         // θ_h = (π/2) v² is v² quarter turns, 2πx is 4x.
         let (outer, azimuth) = sin_cos_quarter_turns_pair(v * v, x * 4.0);
-        let polar = if v >= self.v1 {
-            outer
-        } else {
-            self.cap_angles(v)
-        };
-        (polar, azimuth)
+        (self.polar(v, || outer), azimuth)
+    }
+
+    /// (sin θ_h, cos θ_h) at v: `outer()` above the cap, the cap map below.
+    ///
+    /// Only the formula of v's side of the cap is computed: one draw at a
+    /// time, the cap's division and square root would otherwise delay
+    /// every draw's angles (`sample` ran 2 to 4% faster with the branch,
+    /// measured as for `unit_reflection` in the sampler), and in the batch
+    /// loops the compiler makes the branch a select, so they still
+    /// vectorise. [`v_of`](Self::v_of) and [`jacobian`](Self::jacobian)
+    /// compute both formulas and select one.
+    #[inline(always)]
+    fn polar(&self, v: f32, outer: impl FnOnce() -> (f32, f32)) -> (f32, f32) {
+        if v >= self.v1 {
+            return outer();
+        }
+        let one_minus_cos = (v / self.v1) * self.one_minus_cos1;
+        let cos_cap = 1.0 - one_minus_cos;
+        // sin² = (1 - cos)(1 + cos), exact near the pole.
+        let sin_cap = (one_minus_cos * (1.0 + cos_cap)).max(0.0).sqrt();
+        (sin_cap, cos_cap)
     }
 
     /// The row coordinate v of a unit half vector with the given sin θ_h
