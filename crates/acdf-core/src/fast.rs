@@ -125,18 +125,33 @@ pub fn sin_cos_turns(t: f32) -> (f32, f32) {
 /// since the sum's unit in the last place is 1.
 const ROUND_TO_INTEGER: f32 = 12_582_912.0;
 
-/// Taylor coefficients of sin(a) / a in powers of a², to a⁸ (degree 9).
-const SIN_TAYLOR: [f32; 5] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0];
+/// Taylor coefficients of sin(πr/2) / r in powers of r², to r⁸ (degree
+/// 9): (-1)^k (π/2)^(2k+1) / (2k+1)!, so that the polynomial takes the
+/// remainder r in quarter turns without first scaling it to radians.
+const SIN_QUARTER_TAYLOR: [f32; 5] = [
+    1.570_796_4,
+    -0.645_964_1,
+    0.079_692_624,
+    -0.004_681_754,
+    0.000_160_441_18,
+];
 
-/// Taylor coefficients of cos(a) in powers of a², to a⁸.
-const COS_TAYLOR: [f32; 5] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.0];
+/// Taylor coefficients of cos(πr/2) in powers of r², to r⁸: (-1)^k
+/// (π/2)^(2k) / (2k)!.
+const COS_QUARTER_TAYLOR: [f32; 5] = [
+    1.0,
+    -1.233_700_5,
+    0.253_669_5,
+    -0.020_863_48,
+    0.000_919_260_26,
+];
 
 /// (sin(πs/2), cos(πs/2)) for an angle s in quarter turns, without a libm
-/// call: the nearest quarter turn q is split off exactly and the rest (at
-/// most π/4 in magnitude) goes to Taylor polynomials of degree 9 (sine) and
-/// 8 (cosine), whose truncation errors at π/4 are 1.8e-9 and 2.5e-8. The
-/// reduction is exact for |s| < 8, so the error is that of `f32` rounding,
-/// a few 1e-8 absolute.
+/// call: the nearest quarter turn q is split off exactly and the rest r (at
+/// most half a quarter turn, π/4, in magnitude) goes to Taylor polynomials
+/// of degree 9 (sine) and 8 (cosine) in r, whose truncation errors at
+/// r = 1/2 are 1.8e-9 and 2.5e-8. The reduction is exact for |s| < 8, so
+/// the error is that of `f32` rounding, a few 1e-8 absolute.
 ///
 /// q comes from adding and removing 1.5 · 2^23, and its low bits
 /// from the bits of the sum, rather than from a conversion to an integer
@@ -145,36 +160,46 @@ const COS_TAYLOR: [f32; 5] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40_320.
 /// loop over many angles. One call at a time the tabulated samplers'
 /// `sample` ran 2 to 6% faster (uniform 15.7-16.0 to 16.2-16.3 M/s,
 /// `adaptive:dp` 14.6-15.0 to 15.0-15.8, built-in nickel, best of 10 runs
-/// of 10^6 calls, three alternating runs on a Zen 5 machine). The result
-/// is bit for bit that of the former reduction by truncation, except where
-/// 4t lies exactly halfway between two integers.
+/// of 10^6 calls, three alternating runs on a Zen 5 machine).
+///
+/// The polynomials take r itself (their coefficients carry the powers of
+/// π/2) and the quarter turns are applied by swapping sine and cosine and
+/// flipping sign bits: one multiply fewer, and a select and an exclusive
+/// or instead of a multiply and an add, on the same chain (see
+/// [`sin_cos_quarter_turns_pair`] for what that measured).
 #[inline(always)]
 pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
     let shifted = s + ROUND_TO_INTEGER;
     let q = shifted - ROUND_TO_INTEGER;
     // s - q is exact (|s - q| <= 1/2 and both are multiples of s's ulp).
-    let a = (s - q) * FRAC_PI_2;
-    // The polynomials in a² are evaluated in Estrin's form (pairs of terms
-    // combined with a⁴) rather than Horner's: the same number of
+    let r = s - q;
+    // The polynomials in r² are evaluated in Estrin's form (pairs of terms
+    // combined with r⁴) rather than Horner's: the same number of
     // operations but about half the chain of dependent ones, which is what
     // a single draw waits on.
-    let a2 = a * a;
-    let a4 = a2 * a2;
-    let estrin = |c: &[f32; 5]| (c[0] + a2 * c[1]) + a4 * ((c[2] + a2 * c[3]) + a4 * c[4]);
-    let sin_a = a * estrin(&SIN_TAYLOR);
-    let cos_a = estrin(&COS_TAYLOR);
-    // Rotate by q quarter turns: (sin, cos)(a + q π/2) = (sin_a C + cos_a
-    // S, cos_a C - sin_a S) with (S, C) = (sin, cos)(q π/2) in {0, ±1},
-    // found by arithmetic on the bits of q (S = ±1 for odd q, C = ±1 for
-    // even q, the sign flipping every two quarters) instead of a four-way
-    // branch or a table, so that loops over many angles vectorise. The sum
-    // holds 2^22 + q in its mantissa, whose two low bits are those of q in
-    // two's complement. The products by 0 and ±1 are exact.
+    let r2 = r * r;
+    let r4 = r2 * r2;
+    let estrin = |c: &[f32; 5]| (c[0] + r2 * c[1]) + r4 * ((c[2] + r2 * c[3]) + r4 * c[4]);
+    let sin_r = r * estrin(&SIN_QUARTER_TAYLOR);
+    let cos_r = estrin(&COS_QUARTER_TAYLOR);
+    // (sin, cos)(r + q π/2) is (sin r, cos r) for q = 0 mod 4, (cos r,
+    // -sin r) for 1, (-sin r, -cos r) for 2 and (-cos r, sin r) for 3: an
+    // odd q swaps the two, bit 1 of q negates the sine and bit 1 of q + 1
+    // the cosine. The sum holds 2^22 + q in its mantissa, whose two low bits
+    // are those of q in two's complement. Selects and bit operations rather
+    // than a four-way branch, so that loops over many angles vectorise.
     let bits = shifted.to_bits();
-    let odd = (bits & 1) as f32;
-    let sign = 1.0 - (bits & 2) as f32;
-    let (sin_q, cos_q) = (odd * sign, (1.0 - odd) * sign);
-    (sin_a * cos_q + cos_a * sin_q, cos_a * cos_q - sin_a * sin_q)
+    let (sin_u, cos_u) = if bits & 1 != 0 {
+        (cos_r, sin_r)
+    } else {
+        (sin_r, cos_r)
+    };
+    let sin_sign = (bits & 2) << 30;
+    let cos_sign = (bits.wrapping_add(1) & 2) << 30;
+    (
+        f32::from_bits(sin_u.to_bits() ^ sin_sign),
+        f32::from_bits(cos_u.to_bits() ^ cos_sign),
+    )
 }
 
 /// [`sin_cos_quarter_turns`] of two angles at once, bit for bit:
@@ -213,36 +238,36 @@ unsafe fn sin_cos_pair_sse2(s0: f32, s1: f32) -> ((f32, f32), (f32, f32)) {
     let round = _mm_set1_ps(ROUND_TO_INTEGER);
     let shifted = _mm_add_ps(s, round);
     let q = _mm_sub_ps(shifted, round);
-    let a = _mm_mul_ps(_mm_sub_ps(s, q), _mm_set1_ps(FRAC_PI_2));
-    let a2 = _mm_mul_ps(a, a);
-    let a4 = _mm_mul_ps(a2, a2);
-    let c = |k: usize| lanes(SIN_TAYLOR[k], COS_TAYLOR[k]);
+    let r = _mm_sub_ps(s, q);
+    let r2 = _mm_mul_ps(r, r);
+    let r4 = _mm_mul_ps(r2, r2);
+    let c = |k: usize| lanes(SIN_QUARTER_TAYLOR[k], COS_QUARTER_TAYLOR[k]);
     let estrin = _mm_add_ps(
-        _mm_add_ps(c(0), _mm_mul_ps(a2, c(1))),
+        _mm_add_ps(c(0), _mm_mul_ps(r2, c(1))),
         _mm_mul_ps(
-            a4,
-            _mm_add_ps(_mm_add_ps(c(2), _mm_mul_ps(a2, c(3))), _mm_mul_ps(a4, c(4))),
+            r4,
+            _mm_add_ps(_mm_add_ps(c(2), _mm_mul_ps(r2, c(3))), _mm_mul_ps(r4, c(4))),
         ),
     );
-    // The sine lanes take the factor a, the cosine lanes 1 (exact).
+    // The sine lanes take the factor r, the cosine lanes 1 (exact).
     let one = _mm_set1_ps(1.0);
-    let factor = _mm_unpacklo_ps(_mm_shuffle_ps::<0b10_00_10_00>(a, a), one);
+    let factor = _mm_unpacklo_ps(_mm_shuffle_ps::<0b10_00_10_00>(r, r), one);
     let unrotated = _mm_mul_ps(estrin, factor);
-    // The quarter-turn rotation of the scalar form: S and C from the bits
-    // of the sum, then sin = sin_a C + cos_a S and cos = cos_a C + sin_a
-    // (-S) in the lanes, which is cos_a C - sin_a S exactly.
+    // The quarter turns of the scalar form: where q is odd each lane takes
+    // its partner's value (sine and cosine swapped), then the sign bit
+    // flips with bit 1 of q in the sine lanes and of q + 1 in the cosine
+    // lanes.
     let bits = _mm_castps_si128(shifted);
-    let odd = _mm_cvtepi32_ps(_mm_and_si128(bits, _mm_set1_epi32(1)));
-    let two = _mm_cvtepi32_ps(_mm_and_si128(bits, _mm_set1_epi32(2)));
-    let sign = _mm_sub_ps(one, two);
-    let sin_q = _mm_mul_ps(odd, sign);
-    let cos_q = _mm_mul_ps(_mm_sub_ps(one, odd), sign);
-    let negate_in_cosine_lanes = lanes(0.0, -0.0);
+    let one_bit = _mm_set1_epi32(1);
+    let odd = _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_and_si128(bits, one_bit), one_bit));
     let swapped = _mm_shuffle_ps::<0b10_11_00_01>(unrotated, unrotated);
-    let rotated = _mm_add_ps(
-        _mm_mul_ps(unrotated, cos_q),
-        _mm_mul_ps(swapped, _mm_xor_ps(sin_q, negate_in_cosine_lanes)),
-    );
+    let chosen = _mm_or_ps(_mm_and_ps(odd, swapped), _mm_andnot_ps(odd, unrotated));
+    let plus_one_in_cosine_lanes = _mm_setr_epi32(0, 1, 0, 1);
+    let sign = _mm_slli_epi32::<30>(_mm_and_si128(
+        _mm_add_epi32(bits, plus_one_in_cosine_lanes),
+        _mm_set1_epi32(2),
+    ));
+    let rotated = _mm_xor_ps(chosen, _mm_castsi128_ps(sign));
     let mut out = [0.0f32; 4];
     _mm_storeu_ps(out.as_mut_ptr(), rotated);
     ((out[0], out[1]), (out[2], out[3]))

@@ -41,7 +41,7 @@ struct SegmentLanes {
 
 /// `curve::segment_samples` for eight lanes: the position
 /// x_i + t (x_{i+1} - x_i) with t = (u - c_i) / (c_{i+1} - c_i) clamped to
-/// [0, 1], then clamped into [x_i, x_{i+1}) and below 1, and the density
+/// [0, 1], then clamped below x_{i+1} and below 1, and the density
 /// (c_{i+1} - c_i) / (x_{i+1} - x_i). Returns (positions, densities).
 #[inline(always)]
 unsafe fn segment_samples_lanes(s: SegmentLanes, u: __m256) -> (__m256, __m256) {
@@ -58,10 +58,9 @@ unsafe fn segment_samples_lanes(s: SegmentLanes, u: __m256) -> (__m256, __m256) 
         _mm256_castps_si256(s.x1),
         _mm256_set1_epi32(1),
     ));
-    x = _mm256_blendv_ps(x, s.x0, _mm256_cmp_ps::<_CMP_LT_OQ>(x, s.x0));
-    x = _mm256_blendv_ps(x, below_x1, _mm256_cmp_ps::<_CMP_GT_OQ>(x, below_x1));
     let cap = _mm256_set1_ps(ONE_MINUS_EPSILON);
-    x = _mm256_blendv_ps(x, cap, _mm256_cmp_ps::<_CMP_GT_OQ>(x, cap));
+    let top = _mm256_blendv_ps(below_x1, cap, _mm256_cmp_ps::<_CMP_GT_OQ>(below_x1, cap));
+    x = _mm256_blendv_ps(x, top, _mm256_cmp_ps::<_CMP_GT_OQ>(x, top));
     (x, _mm256_div_ps(mass, width))
 }
 
