@@ -252,7 +252,10 @@ pub(crate) fn segment_samples<const N: usize>(
     }
     // x >= x_i already (t >= 0 and x_{i+1} >= x_i), so only the top needs
     // a clamp, and its two bounds are combined before x is known: one select
-    // on the chain a single draw waits for instead of three.
+    // on the chain a single draw waits for instead of three (a 2D draw whose
+    // input waits for the one before took 17.4-17.7 ns instead of 19.0 on
+    // the built-in nickel's middle slice, a scratch loop on a Zen 5
+    // machine).
     for (x, s) in x.iter_mut().zip(seg) {
         let below_x1 = f32::from_bits(s.x1.to_bits().wrapping_sub(1));
         let top = if below_x1 > ONE_MINUS_EPSILON {

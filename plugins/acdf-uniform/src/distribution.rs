@@ -18,8 +18,9 @@
 //!
 //! **Searching.** A draw finds its cell as the number of stored CDF entries
 //! at or below u. The 1D CDF and the 2D marginal keep a guide table (the
-//! cutpoint method: for each of n equal intervals of u, the range of cells
-//! it can land in), so the expected search is a single 8-wide SIMD compare;
+//! cutpoint method: for each of n equal intervals of u, 256 for the
+//! marginal, the range of cells it can land in), so the expected search is
+//! a single 8-wide SIMD compare;
 //! a 2D conditional of up to 64 cells is counted by comparing every entry.
 //! Both give exactly the cell of a binary search, so the mapping from u to
 //! x stays monotone. Where the CPU has AVX2, `sample_batch` and `pdf_batch`
