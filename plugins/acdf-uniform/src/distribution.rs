@@ -92,7 +92,9 @@ struct Guide {
 /// by the sampler and checked against the slice's gained only 3 to 4%).
 /// 256 is the default θ_h resolution; marginals with many more rows get
 /// wider guide intervals, and those wider than [`GUIDE_WINDOW`] are
-/// searched.
+/// searched: on a nickel slice of 1024 rows a draw that waits for the one
+/// before took 19.5-19.6 ns against 19.0-19.4 with G = n (and 90 rows,
+/// 18.8-19.1 against 19.1-19.3; scratch loop, two alternating runs).
 pub(crate) const MARGINAL_GUIDE_CELLS: usize = 256;
 
 /// The widest guide interval searched with fixed, branch-free comparisons
