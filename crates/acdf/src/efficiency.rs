@@ -18,9 +18,20 @@
 //! `sample` call over 12 × `timing_samples_per_direction` draws, t_eval of one
 //! BRDF evaluation and t_pdf of one `pdf` call at the directions those draws
 //! returned, and v is the fraction of draws that succeed (a failed draw needs
-//! neither). Each of the three is the fastest of three timed passes, which
-//! discounts interference from other processes. The environment lookup is not
-//! included: it is the same for every sampler.
+//! neither). Each of the three is the fastest of
+//! [`timing_passes`](EfficiencyConfig::timing_passes) timed passes, which
+//! discounts interference from other processes. [`measure_efficiencies`]
+//! (the results table) times several samplers in turns, one pass of each
+//! per round, so that a change of the machine's speed during the run (its
+//! clock, other tenants) reaches them all alike and the ratios of their
+//! times hold: on a 2-core machine whose clock was measured between 3.75
+//! and 4.12 GHz over an evening, the uniform sampler's time on nickel in
+//! three consecutive `acdf report` runs was 108, 111 and 160 ns per sample
+//! when each sampler was timed alone after the one before, and 108 to 112
+//! in six runs with the passes in turns (three with three passes, three
+//! with five), every relative efficiency then within 0.02 from run to run.
+//! The environment lookup is not included: it is the same for every
+//! sampler.
 //!
 //! The **efficiency** is 1 / (V · t), in 1/s (for luminance in units of the
 //! environment's radiance); reports also divide it by the efficiency of the
@@ -68,6 +79,8 @@ pub struct EfficiencyConfig {
     pub samples_per_direction: usize,
     /// Draws per outgoing direction for each timed pass.
     pub timing_samples_per_direction: usize,
+    /// Timed passes per sampler, the fastest kept (at least 1).
+    pub timing_passes: usize,
     /// Seed of the uniform numbers; the same for every sampler (common random
     /// numbers), so differences come from the samplers.
     pub seed: u64,
@@ -76,13 +89,14 @@ pub struct EfficiencyConfig {
 impl Default for EfficiencyConfig {
     /// 12 standard directions × 2^17 draws for the variance (1.6 M draws; the
     /// relative standard error of V is printed with it), 2^13 timed draws per
-    /// direction.
+    /// direction, the fastest of three passes.
     fn default() -> Self {
         EfficiencyConfig {
             outgoing: standard_outgoing_directions(),
             frame: standard_frame(),
             samples_per_direction: 1 << 17,
             timing_samples_per_direction: 1 << 13,
+            timing_passes: 3,
             seed: 2005,
         }
     }
@@ -218,65 +232,107 @@ fn direction_moments(
     }
 }
 
-/// Time the three operations of a sample on this thread, best of three
-/// passes over every outgoing direction.
+/// Time the three operations of a sample on this thread, the fastest of
+/// `passes` passes over every outgoing direction.
 pub fn measure_timing(
     brdf: &dyn Brdf,
     sampler: &dyn BxdfSampler,
     outgoing: &[Vec3],
     samples_per_direction: usize,
+    passes: usize,
     seed: u64,
 ) -> Timing {
-    let n = samples_per_direction.max(1);
-    let us: Vec<Vec<Vec2>> = (0..outgoing.len())
-        .map(|j| uniform_pairs(seed ^ 0x7431, j, n))
-        .collect();
-    // The directions drawn in the first pass feed the pdf and eval passes,
-    // which therefore see the same distribution of wi as real use.
-    let mut drawn: Vec<Vec<Vec3>> = vec![Vec::with_capacity(n); outgoing.len()];
-    let (mut best_draw, mut best_pdf, mut best_eval) =
-        (f64::INFINITY, f64::INFINITY, f64::INFINITY);
-    let mut draws = 0usize;
-    let mut valid = 0usize;
-    for pass in 0..3 {
+    let mut run = TimingRun::new(outgoing, samples_per_direction, seed);
+    for _ in 0..passes.max(1) {
+        run.pass(brdf, sampler);
+    }
+    run.timing()
+}
+
+/// The timed passes of one sampler, taken one at a time so that the passes
+/// of several samplers can alternate ([`measure_efficiencies`]).
+struct TimingRun<'a> {
+    outgoing: &'a [Vec3],
+    /// The uniform pairs of each outgoing direction.
+    us: Vec<Vec<Vec2>>,
+    /// The directions drawn in the first pass: the pdf and eval passes use
+    /// them, so they see the distribution of wi of real use.
+    drawn: Vec<Vec<Vec3>>,
+    draws: usize,
+    valid: usize,
+    passes: usize,
+    best_draw: f64,
+    best_pdf: f64,
+    best_eval: f64,
+}
+
+impl<'a> TimingRun<'a> {
+    fn new(outgoing: &'a [Vec3], samples_per_direction: usize, seed: u64) -> Self {
+        let n = samples_per_direction.max(1);
+        TimingRun {
+            outgoing,
+            us: (0..outgoing.len())
+                .map(|j| uniform_pairs(seed ^ 0x7431, j, n))
+                .collect(),
+            drawn: vec![Vec::with_capacity(n); outgoing.len()],
+            draws: 0,
+            valid: 0,
+            passes: 0,
+            best_draw: f64::INFINITY,
+            best_pdf: f64::INFINITY,
+            best_eval: f64::INFINITY,
+        }
+    }
+
+    /// One timed pass of draws, densities and evaluations.
+    fn pass(&mut self, brdf: &dyn Brdf, sampler: &dyn BxdfSampler) {
+        let first = self.passes == 0;
         let start = Instant::now();
-        for (j, &wo) in outgoing.iter().enumerate() {
-            for &u in &us[j] {
+        for (j, &wo) in self.outgoing.iter().enumerate() {
+            for &u in &self.us[j] {
                 let s = black_box(sampler.sample(black_box(wo), black_box(u)));
-                if pass == 0 {
-                    draws += 1;
+                if first {
+                    self.draws += 1;
                     if let Some(s) = s {
-                        valid += 1;
-                        drawn[j].push(s.wi);
+                        self.valid += 1;
+                        self.drawn[j].push(s.wi);
                     }
                 }
             }
         }
-        best_draw = best_draw.min(start.elapsed().as_secs_f64());
+        self.best_draw = self.best_draw.min(start.elapsed().as_secs_f64());
 
         let start = Instant::now();
-        for (j, &wo) in outgoing.iter().enumerate() {
-            for &wi in &drawn[j] {
+        for (j, &wo) in self.outgoing.iter().enumerate() {
+            for &wi in &self.drawn[j] {
                 black_box(sampler.pdf(black_box(wo), black_box(wi)));
             }
         }
-        best_pdf = best_pdf.min(start.elapsed().as_secs_f64());
+        self.best_pdf = self.best_pdf.min(start.elapsed().as_secs_f64());
 
         let start = Instant::now();
-        for (j, &wo) in outgoing.iter().enumerate() {
-            for &wi in &drawn[j] {
+        for (j, &wo) in self.outgoing.iter().enumerate() {
+            for &wi in &self.drawn[j] {
                 black_box(brdf.eval(black_box(wo), black_box(wi)));
             }
         }
-        best_eval = best_eval.min(start.elapsed().as_secs_f64());
+        self.best_eval = self.best_eval.min(start.elapsed().as_secs_f64());
+        self.passes += 1;
     }
-    let draws = draws.max(1) as f64;
-    let valid_calls = valid.max(1) as f64;
-    Timing {
-        seconds_per_draw: best_draw / draws,
-        seconds_per_pdf: best_pdf / valid_calls,
-        seconds_per_eval: best_eval / valid_calls,
-        valid_fraction: valid as f64 / draws,
+
+    /// The per-call times of the fastest passes (zeros before any pass).
+    fn timing(&self) -> Timing {
+        if self.passes == 0 {
+            return Timing::default();
+        }
+        let draws = self.draws.max(1) as f64;
+        let valid_calls = self.valid.max(1) as f64;
+        Timing {
+            seconds_per_draw: self.best_draw / draws,
+            seconds_per_pdf: self.best_pdf / valid_calls,
+            seconds_per_eval: self.best_eval / valid_calls,
+            valid_fraction: self.valid as f64 / draws,
+        }
     }
 }
 
@@ -291,7 +347,67 @@ pub fn measure_efficiency(
     config: &EfficiencyConfig,
 ) -> Efficiency {
     let n = config.samples_per_direction.max(2);
-    let moments: Vec<DirectionMoments> = config
+    let moments = direction_moments_all(brdf, sampler, env, config, n);
+    let timing = measure_timing(
+        brdf,
+        sampler,
+        &config.outgoing,
+        config.timing_samples_per_direction,
+        config.timing_passes,
+        config.seed,
+    );
+    summarise(sampler.name(), &moments, n, timing)
+}
+
+/// [`measure_efficiency`] of several samplers of one `brdf`, their timed
+/// passes taken in turns: each round times one pass of every sampler, and
+/// each keeps its fastest of [`timing_passes`](EfficiencyConfig::timing_passes)
+/// rounds. The variances are those `measure_efficiency` finds.
+pub fn measure_efficiencies(
+    brdf: &dyn Brdf,
+    samplers: &[&dyn BxdfSampler],
+    env: &dyn Environment,
+    config: &EfficiencyConfig,
+) -> Vec<Efficiency> {
+    let n = config.samples_per_direction.max(2);
+    let moments: Vec<Vec<DirectionMoments>> = samplers
+        .iter()
+        .map(|&sampler| direction_moments_all(brdf, sampler, env, config, n))
+        .collect();
+    let mut runs: Vec<TimingRun> = samplers
+        .iter()
+        .map(|_| {
+            TimingRun::new(
+                &config.outgoing,
+                config.timing_samples_per_direction,
+                config.seed,
+            )
+        })
+        .collect();
+    for _ in 0..config.timing_passes.max(1) {
+        for (run, &sampler) in runs.iter_mut().zip(samplers) {
+            run.pass(brdf, sampler);
+        }
+    }
+    samplers
+        .iter()
+        .zip(&moments)
+        .zip(&runs)
+        .map(|((sampler, moments), run)| summarise(sampler.name(), moments, n, run.timing()))
+        .collect()
+}
+
+/// The moments of every outgoing direction of `config`, n draws each, in
+/// parallel over the directions (which also builds any lazily built
+/// tables before a timed pass).
+fn direction_moments_all(
+    brdf: &dyn Brdf,
+    sampler: &dyn BxdfSampler,
+    env: &dyn Environment,
+    config: &EfficiencyConfig,
+    n: usize,
+) -> Vec<DirectionMoments> {
+    config
         .outgoing
         .par_iter()
         .enumerate()
@@ -299,15 +415,7 @@ pub fn measure_efficiency(
             let u = uniform_pairs(config.seed, j, n);
             direction_moments(brdf, sampler, env, &config.frame, wo, &u)
         })
-        .collect();
-    let timing = measure_timing(
-        brdf,
-        sampler,
-        &config.outgoing,
-        config.timing_samples_per_direction,
-        config.seed,
-    );
-    summarise(sampler.name(), &moments, n, timing)
+        .collect()
 }
 
 fn summarise(name: &str, moments: &[DirectionMoments], n: usize, timing: Timing) -> Efficiency {
@@ -398,6 +506,43 @@ mod tests {
         assert!(e.variance_rel_se < 0.5, "{}", e.variance_rel_se);
         assert!(e.efficiency.is_finite() && e.efficiency > 0.0);
         assert!(e.timing.valid_fraction > 0.99);
+    }
+
+    /// Timed in turns, each sampler keeps the variance and estimate it has
+    /// alone (the same draws), its own timing, and its order.
+    #[test]
+    fn samplers_timed_in_turns_keep_their_own_measures() {
+        let brdf = lambert(0.5);
+        let sky = Sky::default();
+        let config = EfficiencyConfig {
+            timing_passes: 2,
+            ..small()
+        };
+        let cosine = acdf_cosine::CosineSampler;
+        let uniform = uniform_tabulation(&brdf);
+        let both: [&dyn BxdfSampler; 2] = [&uniform, &cosine];
+        let together = measure_efficiencies(&brdf, &both, &sky, &config);
+        assert_eq!(together.len(), 2);
+        for (e, sampler) in together.iter().zip(both) {
+            let alone = measure_efficiency(&brdf, sampler, &sky, &config);
+            assert_eq!(e.sampler, alone.sampler);
+            assert_eq!(e.variance, alone.variance);
+            assert_eq!(e.estimate, alone.estimate);
+            assert_eq!(e.timing.valid_fraction, alone.timing.valid_fraction);
+            assert!(e.seconds_per_sample > 0.0 && e.seconds_per_sample.is_finite());
+        }
+        assert!(together[0].variance != together[1].variance);
+    }
+
+    /// The uniform tabulated sampler of `brdf` at a small resolution.
+    fn uniform_tabulation(brdf: &Lambert) -> acdf_uniform::UniformBrdfSampler {
+        let brdf: std::sync::Arc<dyn Brdf> = std::sync::Arc::new(brdf.clone());
+        acdf_uniform::UniformBrdfSampler::new(
+            brdf,
+            "8x1x16x8".parse().unwrap(),
+            acdf_uniform::PiecewiseConstantBuilder,
+        )
+        .unwrap()
     }
 
     #[test]

@@ -29,7 +29,7 @@ pub mod report;
 pub mod spec;
 pub mod sweep;
 
-pub use efficiency::{measure_efficiency, Efficiency, EfficiencyConfig};
+pub use efficiency::{measure_efficiencies, measure_efficiency, Efficiency, EfficiencyConfig};
 pub use env::{EnvMap, Environment, Sky};
 pub use error::{Error, Result};
 pub use material::{load_material, Material};

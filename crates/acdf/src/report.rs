@@ -8,7 +8,7 @@ use std::time::Instant;
 use acdf_core::BxdfSampler;
 use serde::Serialize;
 
-use crate::efficiency::{measure_efficiency, Efficiency, EfficiencyConfig};
+use crate::efficiency::{measure_efficiencies, Efficiency, EfficiencyConfig};
 use crate::env::Environment;
 use crate::error::Result;
 use crate::material::Material;
@@ -68,7 +68,10 @@ struct Measured {
 }
 
 /// Measure every sampler of [`report_samplers`] on `material`. `progress` is
-/// called with each sampler's name before it is measured.
+/// called with each sampler's name before it is built, and with "timing"
+/// before the samplers' timed passes, which run in turns
+/// ([`measure_efficiencies`]) so that their times are compared under the
+/// same conditions.
 pub fn report_material(
     material: &Material,
     env: &dyn Environment,
@@ -76,23 +79,32 @@ pub fn report_material(
     config: &EfficiencyConfig,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<ReportRow>> {
-    let mut measured = Vec::new();
+    let mut built = Vec::new();
     for spec in report_samplers(material) {
         progress(&spec.to_string());
         let sampler = make_sampler_spec(spec, material, options)?;
         let start = Instant::now();
         sampler.build_all()?;
-        let build_seconds = start.elapsed().as_secs_f64();
-        let efficiency = measure_efficiency(material.brdf.as_ref(), &sampler, env, config);
-        measured.push(Measured {
-            spec,
+        built.push((spec, sampler, start.elapsed().as_secs_f64()));
+    }
+    progress("timing");
+    let samplers: Vec<&dyn BxdfSampler> = built
+        .iter()
+        .map(|(_, sampler, _)| sampler as &dyn BxdfSampler)
+        .collect();
+    let efficiencies = measure_efficiencies(material.brdf.as_ref(), &samplers, env, config);
+    let measured: Vec<Measured> = built
+        .iter()
+        .zip(efficiencies)
+        .map(|((spec, sampler, build_seconds), efficiency)| Measured {
+            spec: *spec,
             name: spec.to_string(),
             resolution: sampler.resolution_label(),
             storage_bytes: sampler.storage_bytes(),
-            build_seconds,
+            build_seconds: *build_seconds,
             efficiency,
-        });
-    }
+        })
+        .collect();
     let uniform = measured.iter().find(|m| m.spec == SamplerSpec::Uniform);
     let uniform_storage = uniform.map(|m| m.storage_bytes as f64);
     let uniform_eff = uniform.map(|m| m.efficiency.efficiency);
