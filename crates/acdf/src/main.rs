@@ -329,7 +329,7 @@ struct SweepMeasureArgs {
     /// Draws per outgoing direction in each timed pass.
     #[arg(long, value_name = "N", default_value_t = 1 << 12)]
     timing_samples: usize,
-    /// Timed passes per sampler, the fastest kept.
+    /// Timed passes per sampler, the fastest kept; the samplers take turns.
     #[arg(long, value_name = "N", default_value_t = 3)]
     timing_passes: usize,
     /// Seed of the uniform numbers.
@@ -749,7 +749,8 @@ fn cmd_sweep(a: SweepArgs) -> Result<()> {
     };
     let config = measure.config()?;
     let per_simplifier = fixed.as_ref().map_or(TOLERANCE_FACTORS.len(), Vec::len);
-    let total = 2 + simplifiers.len() * per_simplifier;
+    // The two references, every simplifier at every tolerance, then the timing.
+    let total = 2 + simplifiers.len() * per_simplifier + 1;
     eprintln!("{}", measure.describe(&config));
     let pb = bar(total as u64, "sweep");
     let points = run_sweep(
