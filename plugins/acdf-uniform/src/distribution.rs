@@ -1255,12 +1255,7 @@ mod tests {
             let d = PiecewiseConstant1D::new(&values).unwrap();
             let cdf = d.cdf();
             let n = cdf.len();
-            let g = n as f32;
-            let near_boundaries = (0..n).flat_map(|k| {
-                let b = k as f32 / g;
-                [b.next_down().max(0.0), b, b.next_up()]
-            });
-            for u in u.iter().copied().chain(near_boundaries).chain(cdf.iter().copied()) {
+            for u in u.iter().copied().chain(near_guide_boundaries(n)).chain(cdf.iter().copied()) {
                 let u = clamp_unit(u);
                 let expected = cdf[..n - 1].partition_point(|&c| c <= u);
                 prop_assert_eq!(d.guide.count_at_or_below(cdf, u), expected, "u {}", u);
@@ -1278,12 +1273,8 @@ mod tests {
             v.resize(nx * ny, 0.0);
             let d = PiecewiseConstant2D::new(&v, nx, ny).unwrap();
             let marginal = d.marginal();
-            let g = MARGINAL_GUIDE_CELLS as f32;
-            let near_boundaries = (0..MARGINAL_GUIDE_CELLS).flat_map(|k| {
-                let b = k as f32 / g;
-                [b.next_down().max(0.0), b, b.next_up()]
-            });
-            for u in u.iter().copied().chain(near_boundaries).chain(marginal.iter().copied()) {
+            let boundaries = near_guide_boundaries(MARGINAL_GUIDE_CELLS);
+            for u in u.iter().copied().chain(boundaries).chain(marginal.iter().copied()) {
                 let u = clamp_unit(u);
                 let expected = marginal[..ny - 1].partition_point(|&c| c <= u);
                 prop_assert_eq!(d.row(u), expected, "u {} ny {}", u, ny);
@@ -1444,6 +1435,15 @@ mod tests {
     }
 
     /// Tables with zeros and a wide dynamic range.
+    /// Each boundary k / g of a guide of g cells and the floats on either
+    /// side of it.
+    fn near_guide_boundaries(g: usize) -> impl Iterator<Item = f32> {
+        (0..g).flat_map(move |k| {
+            let b = k as f32 / g as f32;
+            [b.next_down().max(0.0), b, b.next_up()]
+        })
+    }
+
     fn table(max_len: usize) -> impl Strategy<Value = Vec<f32>> {
         prop::collection::vec(
             prop_oneof![Just(0.0f32), 0.0f32..10.0, 1e-20f32..1e-10, 1e10f32..1e20],
