@@ -85,7 +85,7 @@ struct Guide {
 /// draw at a time that matters: a tabulated sampler locates the slice from
 /// wo just before it draws, and a scale read from the slice put the cell's
 /// multiply, clamps and conversion after that lookup on every draw's chain.
-/// The uniform sampler's `sample` ran 6 to 11% faster with the constant
+/// The uniform sampler's `sample` ran 6 to 14% faster with the constant
 /// (built-in nickel, 256 rows, so the same guide as G = n: 17.0-17.4 to
 /// 18.5-19.4 M/s, a scratch loop of the bench's calls, best of 15 runs of
 /// 10^6, three alternating runs on a Zen 5 machine; a row count passed in
