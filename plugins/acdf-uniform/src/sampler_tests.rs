@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::tabulate::{incident_density, slice_outgoing, HalfMap};
-use acdf_core::geometry::spherical_direction;
+use acdf_core::geometry::{reflect, spherical_direction};
 use acdf_core::Rgb;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -184,6 +184,33 @@ fn sample_pdf_equals_pdf_of_the_sample() {
 /// rest fall below the horizon). The integral uses a grid 4× finer than
 /// the table; the fraction 100 000 draws, whose standard error is below
 /// 0.0016, so the tolerance 0.01 is over six standard errors.
+/// Every table draw is unit length to 1e-6, one at a time and in a batch,
+/// for unit wo, for wo a little off unit length (the scale from |wo|²) and
+/// for wo far from it (the full normalisation). Without the scale, the
+/// second case is off by about 1e-4.
+#[test]
+fn sampled_directions_are_unit() {
+    let u = uniform_pairs(5, 4000);
+    for name in ["lambert", "nickel", "near-mirror"] {
+        for res in [small_iso(), small_paper()] {
+            let s = uniform(name, res);
+            let mut worst = 0.0f32;
+            for wo in outgoing_directions() {
+                for scale in [1.0, 1.0 + 3e-7, 1.0 - 1e-4, 1.1] {
+                    let wo = wo * scale;
+                    let mut batch = vec![None; u.len()];
+                    s.sample_batch(wo, &u, &mut batch);
+                    let single = u.iter().map(|&u| s.sample(wo, u));
+                    for b in single.chain(batch).flatten() {
+                        worst = worst.max((b.wi.length() - 1.0).abs());
+                    }
+                }
+            }
+            assert!(worst <= 1e-6, "{name} {res}: |wi| off unit by {worst}");
+        }
+    }
+}
+
 #[test]
 fn pdf_integrates_to_the_accepted_fraction() {
     let u = uniform_pairs(2, 100_000);

@@ -179,12 +179,19 @@ impl HalfMap {
         (sin_cap, cos_cap)
     }
 
-    /// The row coordinate v of a unit half vector with the given sin θ_h
-    /// and cos θ_h (the inverse of [`angles`](Self::angles)).
+    /// The row coordinate v of the half vector with sin θ_h = `scale` ·
+    /// `rho` and cos θ_h = `scale` · `z` (the inverse of
+    /// [`angles`](Self::angles)); `scale` is 1 for a unit vector's
+    /// (sin θ_h, cos θ_h).
+    ///
+    /// θ_h = atan2(rho, z) needs no scale, so a caller holding an
+    /// unnormalised half vector (wi + wo) gets v without waiting for its
+    /// normalisation; only the polar cap's formula uses `scale`.
     #[inline(always)]
-    pub fn v_of(&self, sin_h: f32, cos_h: f32) -> f32 {
-        let theta = fast_atan2(sin_h, cos_h);
+    pub fn v_of(&self, rho: f32, z: f32, scale: f32) -> f32 {
+        let theta = fast_atan2(rho, z);
         let outer = v_of_theta_h(theta);
+        let (sin_h, cos_h) = (rho * scale, z * scale);
         // 1 - cos θ = sin² θ / (1 + cos θ), exact near the pole.
         let one_minus_cos = sin_h * sin_h / (1.0 + cos_h);
         let cap = (self.v1 * one_minus_cos / self.one_minus_cos1).min(self.v1);
@@ -400,7 +407,7 @@ mod tests {
         for v in [0.0, 1e-5, 0.5 * v1, 0.99 * v1, v1, 0.01, 0.3, 0.999] {
             let (s, c) = map.angles(v);
             approx::assert_relative_eq!(s * s + c * c, 1.0, max_relative = 1e-6);
-            approx::assert_abs_diff_eq!(map.v_of(s, c), v, epsilon = 2e-6 * v.max(v1));
+            approx::assert_abs_diff_eq!(map.v_of(s, c, 1.0), v, epsilon = 2e-6 * v.max(v1));
             // d(1 - cos θ)/dv by a central difference in f64.
             let dv = 1e-3 * v.max(v1) as f64;
             let omc = |v: f64| {
