@@ -156,6 +156,82 @@ pub fn count_short_or_search(data: &[f32], start: usize, len: usize, v: f32) -> 
     }
 }
 
+/// A cutpoint index (guide table) of a non-decreasing list of values in
+/// [0, 1]: for each of G equal intervals of v, the range of entries that a
+/// count for a v in that interval has still to compare.
+///
+/// With cell(v) = min(floor(v G), G - 1) (a monotone function of v, the
+/// same in `f32` whatever the rounding), `lo[g]` is the number of entries e
+/// with cell(e) < g. For v in cell g every entry counted by `lo[g]` is below
+/// v and every entry from `lo[g + 1]` on is above it, so the count of
+/// entries `<= v` is `lo[g]` plus the count within [`lo[g]`, `lo[g + 1]`):
+/// exactly what a plain search returns. It is derived from the list (never
+/// stored with it) and held as `u16`, so a list of more than 2^16 entries
+/// gets no guide.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Guide {
+    /// G + 1 counts; empty when there is no guide.
+    lo: Box<[u16]>,
+}
+
+impl Guide {
+    /// The guide of `list` with `cells` intervals (none for an empty list,
+    /// zero cells or more than 2^16 entries).
+    pub fn new(list: &[f32], cells: usize) -> Guide {
+        if list.is_empty() || cells == 0 || list.len() > u16::MAX as usize {
+            return Guide::default();
+        }
+        let mut lo = vec![0u16; cells + 1];
+        let mut k = 0;
+        for (g, lo) in lo.iter_mut().enumerate() {
+            while k < list.len() && Self::cell(list[k], cells) < g {
+                k += 1;
+            }
+            *lo = k as u16;
+        }
+        Guide { lo: lo.into() }
+    }
+
+    /// cell(v) = min(floor(v G), G - 1) for G = `cells`; negative values
+    /// and NaN give 0. With a constant G the cell of a random number is
+    /// known before the list is.
+    #[inline(always)]
+    pub fn cell(v: f32, cells: usize) -> usize {
+        crate::fast::grid_cell(v * cells as f32, (cells - 1) as f32)
+    }
+
+    /// Whether there is no guide (see [`new`](Self::new)).
+    #[inline(always)]
+    pub fn is_empty(&self) -> bool {
+        self.lo.is_empty()
+    }
+
+    /// The entries of the index: G + 1 counts, or none.
+    pub fn counts(&self) -> &[u16] {
+        &self.lo
+    }
+
+    /// Heap bytes of the index.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(&*self.lo)
+    }
+
+    /// The number of entries of `data[start..start + n]`, the list the
+    /// guide was built from, that are `<= v`, given g = [`cell`](Self::cell)
+    /// of v (a guide must exist). A range of up to [`WINDOW`] entries, the
+    /// common case, is compared in one window ([`count_window`]); a longer
+    /// one (entries crowded into one interval) is searched.
+    #[inline(always)]
+    pub fn count(&self, data: &[f32], start: usize, v: f32, g: usize) -> usize {
+        let (a, b) = (self.lo[g] as usize, self.lo[g + 1] as usize);
+        a + if b - a <= WINDOW && data.len() >= WINDOW {
+            count_window(data, start + a, b - a, v)
+        } else {
+            count_at_or_below(data, start + a, b - a, [v])[0]
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -271,6 +347,34 @@ mod tests {
             for v in probes(&list).into_iter().chain([v]) {
                 let expected = plain(&list, v);
                 check(&data, before, list.len(), v, expected);
+            }
+        }
+
+        /// A guide's count equals `partition_point` for lists whose entries
+        /// crowd into few intervals (more than a window's worth in one, so
+        /// the fallback search runs) or spread over many, whatever G, with
+        /// the list anywhere in a buffer.
+        #[test]
+        fn guided_counts_equal_partition_point(
+            values in prop::collection::vec(0.0f32..1.0, 1..120),
+            crowd in prop::sample::select(vec![1.0f32, 0.05, 0.001]),
+            repeat in prop::collection::vec(any::<bool>(), 120),
+            cells in prop::sample::select(vec![1usize, 3, 32, 256]),
+            before in 0usize..40,
+            after in 0usize..40,
+        ) {
+            // `crowd` squeezes the values towards 1, as the flat tail of a
+            // peaked CDF does.
+            let squeezed = values.iter().map(|&v| 1.0 - crowd * (1.0 - v)).collect();
+            let list = sorted(squeezed, &repeat);
+            let guide = Guide::new(&list, cells);
+            prop_assert_eq!(guide.counts().len(), cells + 1);
+            let mut data = vec![0.5f32; before];
+            data.extend(&list);
+            data.extend(std::iter::repeat_n(-1.0, after));
+            for v in probes(&list) {
+                let count = guide.count(&data, before, v, Guide::cell(v, cells));
+                prop_assert_eq!(count, plain(&list, v), "v {}", v);
             }
         }
     }

@@ -119,11 +119,11 @@ impl Persist for AdaptiveCdf2D {
                 reason: format!("{integral} is not a finite non-negative number"),
             });
         }
-        Ok(AdaptiveCdf2D {
-            marginal: marginal.into_boxed_slice(),
-            offsets: offsets.into_boxed_slice(),
-            conditionals: conditionals.into_boxed_slice(),
+        Ok(AdaptiveCdf2D::from_parts(
+            marginal,
+            offsets,
+            conditionals,
             integral,
-        })
+        ))
     }
 }

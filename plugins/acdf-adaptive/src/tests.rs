@@ -420,9 +420,15 @@ fn storage_is_counted_exactly() {
             .map(|j| d.conditional_vertex_count(j))
             .sum();
         assert_eq!(d.conditional_count(), marginal - 1);
+        // The marginal's guide: G + 1 counts of two bytes.
+        let guide = if marginal >= 3 {
+            2 * (crate::curve::CURVE_GUIDE_CELLS + 1)
+        } else {
+            0
+        };
         assert_eq!(
             d.storage_bytes(),
-            8 * marginal + 4 * (d.conditional_count() + 1) + 8 * conditional
+            8 * marginal + 4 * (d.conditional_count() + 1) + 8 * conditional + guide
         );
         let d1 = AdaptiveCdf1D::from_values(&values[..nx], &*s, 0.02).unwrap();
         assert_eq!(d1.storage_bytes(), 8 * d1.vertex_count());

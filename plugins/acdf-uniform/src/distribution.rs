@@ -55,27 +55,21 @@ pub(crate) fn count_at_or_below(cdf: &[f32], u: f32) -> usize {
     search::count_short_or_search(cdf, 0, cdf.len(), u)
 }
 
-/// The cutpoint index (guide table) of a stored CDF: for G equal intervals
-/// of u (G = n for a 1D distribution, a fixed [`MARGINAL_GUIDE_CELLS`] for
-/// a 2D marginal), the range of cells a `u` in interval g can land in, so
-/// that the search inspects a handful of entries instead of log n.
-///
-/// With cell(c) = min(floor(c G), G - 1) evaluated in `f32` (a monotone
-/// function of c), `lo[g]` is the number of searched entries c_k with
-/// cell(c_k) < g. For u with cell(u) = g every entry counted by `lo[g]` is
-/// below u and every entry from `lo[g + 1]` on is above it (monotonicity,
-/// whatever the rounding), so the count of entries `<= u` lies in
-/// [`lo[g]`, `lo[g + 1]`]: the mapping from u to the cell stays exactly the
-/// one of a plain search. It is derived from the CDF (rebuilt when a
-/// distribution is read back, never stored) and held as `u16`, so it is
-/// built for CDFs of at most 2^16 searched entries; longer ones are searched
-/// without it.
+/// The cutpoint index (guide table) of a stored CDF: the shared
+/// [`search::Guide`] over its searched entries (all but the last, which is
+/// 1), with G equal intervals of u (G = n for a 1D distribution, a fixed
+/// [`MARGINAL_GUIDE_CELLS`] for a 2D marginal), so that the search inspects
+/// a handful of entries instead of log n and returns exactly the cell of a
+/// plain search. Derived from the CDF (rebuilt when a distribution is read
+/// back, never stored); a CDF of more than 2^16 searched entries is
+/// searched without it. The count within an interval compares a window of
+/// [`GUIDE_WINDOW`] entries, narrower than the shared guide's: here G is
+/// at least the number of cells, so intervals hold few entries.
 #[derive(Debug, Clone, PartialEq, Default)]
 struct Guide {
-    /// G + 1 entries; empty when there is no guide.
-    lo: Vec<u16>,
-    /// G as `f32`.
-    scale: f32,
+    index: search::Guide,
+    /// G.
+    cells: usize,
 }
 
 /// G of a 2D marginal's guide, whatever the number of rows.
@@ -110,42 +104,34 @@ impl Guide {
 
     /// The guide of a stored CDF with G = `g_count` intervals (at least 1).
     fn with_cells(cdf: &[f32], g_count: usize) -> Guide {
-        let searched = &cdf[..cdf.len().saturating_sub(1)];
-        let m = searched.len();
-        if m == 0 || m > u16::MAX as usize {
-            return Guide::default();
+        Guide {
+            index: search::Guide::new(&cdf[..cdf.len().saturating_sub(1)], g_count),
+            cells: g_count,
         }
-        let mut guide = Guide {
-            lo: vec![0; g_count + 1],
-            scale: g_count as f32,
-        };
-        let mut k = 0;
-        for g in 0..=g_count {
-            while k < m && guide.cell(searched[k]) < g {
-                k += 1;
-            }
-            guide.lo[g] = k as u16;
-        }
-        guide
     }
 
-    /// cell(u) = min(floor(u G), G - 1); NaN and negatives give 0
-    /// ([`grid_cell`]).
+    /// cell(u) = min(floor(u G), G - 1); NaN and negatives give 0.
     #[inline(always)]
     fn cell(&self, u: f32) -> usize {
-        grid_cell(u * self.scale, self.scale - 1.0)
+        search::Guide::cell(u, self.cells)
+    }
+
+    /// Whether there is no guide.
+    #[inline(always)]
+    fn is_empty(&self) -> bool {
+        self.index.is_empty()
     }
 
     /// Heap bytes of the index.
     fn bytes(&self) -> usize {
-        self.lo.capacity() * std::mem::size_of::<u16>()
+        self.index.bytes()
     }
 
     /// The number of entries of `cdf[..n - 1]` that are `<= u`, for the CDF
     /// the guide was built from and u in [0, 1).
     #[inline(always)]
     fn count_at_or_below(&self, cdf: &[f32], u: f32) -> usize {
-        if self.lo.is_empty() {
+        if self.is_empty() {
             return count_at_or_below(&cdf[..cdf.len() - 1], u);
         }
         self.count_from_cell(cdf, u, self.cell(u))
@@ -156,7 +142,8 @@ impl Guide {
     #[inline(always)]
     fn count_from_cell(&self, cdf: &[f32], u: f32, g: usize) -> usize {
         let n = cdf.len();
-        let (a, b) = (self.lo[g] as usize, self.lo[g + 1] as usize);
+        let lo = self.index.counts();
+        let (a, b) = (lo[g] as usize, lo[g + 1] as usize);
         if b - a <= GUIDE_WINDOW && n >= GUIDE_WINDOW {
             // Count a fixed window of entries from a (moved left to stay
             // inside the table): entries before a are below u and entries
@@ -628,10 +615,10 @@ impl PiecewiseConstant2D {
     fn row(&self, v: f32) -> usize {
         const G: f32 = MARGINAL_GUIDE_CELLS as f32;
         let guide = &self.marginal_guide;
-        if guide.lo.is_empty() {
+        if guide.is_empty() {
             return count_at_or_below(&self.marginal[..self.ny - 1], v);
         }
-        debug_assert_eq!(guide.scale, G);
+        debug_assert_eq!(guide.cells, MARGINAL_GUIDE_CELLS);
         guide.count_from_cell(&self.marginal, v, grid_cell(v * G, G - 1.0))
     }
 
