@@ -24,7 +24,10 @@ pub struct BxdfSample {
 /// above the horizon.
 #[inline(always)]
 pub fn is_valid_outgoing(wo: Vec3) -> bool {
-    wo.z > 0.0 && wo.is_finite()
+    // 0 · w is ±0 for every finite w and NaN for an infinity or NaN, so
+    // one compare of the sum tests all three components: every `sample`
+    // and `pdf` starts here.
+    wo.z > 0.0 && (wo * 0.0).element_sum() == 0.0
 }
 
 /// Draws incident directions for a given outgoing direction.

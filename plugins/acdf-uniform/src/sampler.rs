@@ -136,6 +136,13 @@ impl SliceBuilder for PiecewiseConstantBuilder {
         dist.same_cell_around(p, margin)
     }
 
+    /// The box test from the draw's own cell
+    /// ([`PiecewiseConstant2D::sample_and_same_cell`]).
+    #[inline(always)]
+    fn sample_and_same_cell(&self, dist: &Self::Dist, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
+        dist.sample_and_same_cell(u, margin)
+    }
+
     /// The staged draws of [`PiecewiseConstant2D::sample_each`].
     fn sample_each(&self, dists: &[&Self::Dist], u: &[Vec2], out: &mut [Sample2D]) {
         PiecewiseConstant2D::sample_each(dists, u, out);
@@ -514,7 +521,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             return None;
         }
         let shortcut = self.shortcut_cells && draw.shortcut_geometry && same_cell();
-        let pdf = if shortcut && draw.denominator > 0.0 && draw.table.is_finite() {
+        // A cell density that is positive and finite (a denominator at or
+        // below zero makes it negative or infinite): two compares, no
+        // branch; anything else takes the exact density.
+        let usable = (draw.table > 0.0) & (draw.table < f32::INFINITY);
+        let pdf = if shortcut && usable {
             self.mix_with_cosine(draw.table, wi)
         } else {
             exact()
