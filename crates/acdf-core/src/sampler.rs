@@ -108,3 +108,30 @@ impl<T: BxdfSampler + ?Sized> BxdfSampler for Box<T> {
         (**self).pdf_each(wo, wi, out)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every component is tested for infinity and NaN, and z for the
+    /// horizon; finite directions above it pass whatever their length.
+    #[test]
+    fn outgoing_directions_are_finite_and_above_the_horizon() {
+        let bad = [f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        for b in bad {
+            assert!(!is_valid_outgoing(Vec3::new(b, 0.0, 0.5)));
+            assert!(!is_valid_outgoing(Vec3::new(0.0, b, 0.5)));
+            assert!(!is_valid_outgoing(Vec3::new(0.3, 0.1, b)));
+        }
+        for z in [0.0, -0.0, -1e-30, -1.0] {
+            assert!(!is_valid_outgoing(Vec3::new(0.0, 0.0, z)));
+        }
+        for wo in [
+            Vec3::Z,
+            Vec3::new(-0.0, 0.0, 1e-30),
+            Vec3::new(3e38, -3e38, 2.0),
+        ] {
+            assert!(is_valid_outgoing(wo), "{wo}");
+        }
+    }
+}
