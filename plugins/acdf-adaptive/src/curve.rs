@@ -81,6 +81,13 @@ impl CurveGuides {
     pub fn bytes(&self) -> usize {
         self.cdfs.bytes()
     }
+
+    /// The first segment that a draw with this u can land in (0 without
+    /// a guide).
+    #[inline(always)]
+    pub fn first_segment(&self, u: f32) -> usize {
+        self.cdfs.first(Guide::cell(u, CURVE_GUIDE_CELLS))
+    }
 }
 
 impl<'a> Curve<'a> {

@@ -648,6 +648,21 @@ impl PiecewiseConstant2D {
         guide.count_from_cell(&self.marginal, v, grid_cell(v * G, G - 1.0))
     }
 
+    /// Start loading the conditional row that a draw with this v = u.y
+    /// most likely takes: the first row of v's guide interval, which holds
+    /// one or two rows on most tables ([`search::prefetch`]). The
+    /// uniform sampler's `sample`, one call at a time, ran 2 to 5% faster
+    /// with it (built-in nickel, wo changing every call, best of 15 runs of
+    /// 10^6, four alternating runs on a Zen 5 machine; prefetching the
+    /// interval's last row as well gained nothing more).
+    #[inline(always)]
+    fn prefetch_likely_row(&self, v: f32) {
+        const G: f32 = MARGINAL_GUIDE_CELLS as f32;
+        let g = grid_cell(v * G, G - 1.0);
+        let row = self.marginal_guide.index.first(g);
+        search::prefetch(&self.conditional, row * self.nx, self.nx);
+    }
+
     /// The sample for a clamped `u` once its row j and column k are known.
     #[inline(always)]
     fn finish(&self, j: usize, k: usize, u: Vec2) -> Sample2D {
@@ -679,6 +694,7 @@ impl PiecewiseConstant2D {
     #[inline(always)]
     pub fn sample_and_same_cell(&self, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
         let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+        self.prefetch_likely_row(u.y);
         let j = self.row(u.y);
         let k = self.column(j, u.x);
         let s = self.finish(j, k, u);
@@ -723,6 +739,7 @@ impl Distribution2D for PiecewiseConstant2D {
     #[inline(always)]
     fn sample(&self, u: Vec2) -> Sample2D {
         let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+        self.prefetch_likely_row(u.y);
         let j = self.row(u.y);
         let k = self.column(j, u.x);
         self.finish(j, k, u)
