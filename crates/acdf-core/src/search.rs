@@ -12,7 +12,9 @@
 //! all at once, a longer one (a marginal over 256 θ_h rows) is first cut
 //! down to such a window by a four-way search.
 //!
-//! Nothing here is stored: the searches read the lists as they are.
+//! The searches read the lists as they are; a [`Guide`], the one index
+//! here, is derived from its list when a distribution is built or loaded,
+//! never written with it.
 //!
 //! [`lanes`] (x86-64) searches for many draws at once in AVX2 lanes, for the
 //! batch paths.

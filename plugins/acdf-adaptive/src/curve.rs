@@ -39,13 +39,14 @@ pub(crate) struct Curve<'a> {
     data: &'a [f32],
     start: usize,
     len: usize,
-    guides: Option<&'a CurveGuides>,
+    guide: Option<&'a CurveGuide>,
 }
 
-/// The number of equal intervals of a [`CurveGuides`] guide: 32, so that
-/// the guide's counts take 66 bytes and, on every 2D marginal of the
-/// built-in materials, no interval holds more than the 32 entries one
-/// window compares (at most 18 CDF values and 8 positions).
+/// The number of equal intervals of a [`CurveGuide`]: 32, so that its
+/// counts take 66 bytes and no interval holds more than the 32 entries one
+/// window compares (at most 18 CDF values on every slice of nickel,
+/// gray-plastic and blue-metallic-paint with `dp` and `chi2` at the
+/// isotropic resolution, counted when the guide was chosen).
 pub(crate) const CURVE_GUIDE_CELLS: usize = 32;
 
 /// A guide ([`Guide`]) of a curve's inner CDF values c_1..c_{m-2} with
@@ -61,18 +62,18 @@ pub(crate) const CURVE_GUIDE_CELLS: usize = 32;
 /// call at a time fell from 20.5-21.1 to 19.3-20.3 M/s, built-in nickel,
 /// a scratch loop of the bench's calls, three alternating runs).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
-pub(crate) struct CurveGuides {
+pub(crate) struct CurveGuide {
     cdfs: Guide,
 }
 
-impl CurveGuides {
+impl CurveGuide {
     /// The guide of the curve filling `data` (positions, then CDF values).
     pub fn new(data: &[f32]) -> Self {
         let m = data.len() / 2;
         if m < 3 {
-            return CurveGuides::default();
+            return CurveGuide::default();
         }
-        CurveGuides {
+        CurveGuide {
             cdfs: Guide::new(&data[m + 1..2 * m - 1], CURVE_GUIDE_CELLS),
         }
     }
@@ -99,15 +100,15 @@ impl<'a> Curve<'a> {
             data,
             start: 0,
             len: data.len() / 2,
-            guides: None,
+            guide: None,
         }
     }
 
-    /// [`whole`](Self::whole) with the curve's [`CurveGuides`].
+    /// [`whole`](Self::whole) with the curve's [`CurveGuide`].
     #[inline(always)]
-    pub fn guided(data: &'a [f32], guides: &'a CurveGuides) -> Self {
+    pub fn guided(data: &'a [f32], guide: &'a CurveGuide) -> Self {
         Curve {
-            guides: Some(guides),
+            guide: Some(guide),
             ..Self::whole(data)
         }
     }
@@ -121,7 +122,7 @@ impl<'a> Curve<'a> {
             data,
             start,
             len,
-            guides: None,
+            guide: None,
         }
     }
 
@@ -185,7 +186,7 @@ impl<'a> Curve<'a> {
     #[inline(always)]
     pub fn segment_of_u(&self, u: f32) -> usize {
         let start = self.start + self.len + 1;
-        match self.guides {
+        match self.guide {
             Some(g) if !g.cdfs.is_empty() => {
                 g.cdfs
                     .count(self.data, start, u, Guide::cell(u, CURVE_GUIDE_CELLS))

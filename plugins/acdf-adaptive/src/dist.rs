@@ -1,7 +1,7 @@
 //! Adaptive (curve-simplified) distributions over [0, 1) and [0, 1)^2.
 
 use crate::curve::{
-    cdf_points, prefix_sums, push_vertices, segment_samples, Curve, CurveGuides, Running, Segment,
+    cdf_points, prefix_sums, push_vertices, segment_samples, Curve, CurveGuide, Running, Segment,
 };
 use crate::simplify::{validate_tolerance, ErrorBound, Simplifier};
 use acdf_core::{
@@ -253,9 +253,9 @@ impl AdaptiveCdf1D {
 /// value). A marginal segment of zero mass is never sampled and has density
 /// 0, so its conditional is stored empty. In memory the marginal also keeps
 /// a guide of its CDF values, 33 counts of two bytes derived from it
-/// (`curve::CurveGuides`; not written by `persist`), which
-/// `storage_bytes` counts: 66 bytes, 0.35% of an adaptive:dp slice of the
-/// built-in nickel.
+/// (`curve::CurveGuide`; not written by `persist`), which
+/// `storage_bytes` counts: 66 bytes, about 0.35% of an adaptive:dp slice
+/// of the built-in nickel.
 ///
 /// Sampling and density lookups search these lists without branches that
 /// follow the random numbers (one at a time, a 32-entry window compared at
@@ -271,8 +271,8 @@ pub struct AdaptiveCdf2D {
     pub(crate) offsets: Box<[u32]>,
     pub(crate) conditionals: Box<[f32]>,
     pub(crate) integral: f64,
-    /// The marginal's guides, derived from it.
-    pub(crate) marginal_guides: CurveGuides,
+    /// The guide of the marginal's CDF values, derived from it.
+    pub(crate) marginal_guide: CurveGuide,
 }
 
 impl AdaptiveCdf2D {
@@ -499,7 +499,7 @@ impl AdaptiveCdf2D {
     }
 
     /// The distribution of stored arrays (checked by the caller), with the
-    /// marginal's guides derived from them.
+    /// marginal's guide derived from them.
     pub(crate) fn from_parts(
         marginal: Vec<f32>,
         offsets: Vec<u32>,
@@ -507,7 +507,7 @@ impl AdaptiveCdf2D {
         integral: f64,
     ) -> Self {
         AdaptiveCdf2D {
-            marginal_guides: CurveGuides::new(&marginal),
+            marginal_guide: CurveGuide::new(&marginal),
             marginal: marginal.into_boxed_slice(),
             offsets: offsets.into_boxed_slice(),
             conditionals: conditionals.into_boxed_slice(),
@@ -517,7 +517,7 @@ impl AdaptiveCdf2D {
 
     #[inline(always)]
     fn marginal_curve(&self) -> Curve<'_> {
-        Curve::guided(&self.marginal, &self.marginal_guides)
+        Curve::guided(&self.marginal, &self.marginal_guide)
     }
 
     /// The number of vertices kept by the marginal over y.
@@ -572,7 +572,7 @@ impl AdaptiveCdf2D {
     #[inline(always)]
     fn prefetch_likely_conditional(&self, uy: f32) {
         let last = self.offsets.len().saturating_sub(2);
-        let j = self.marginal_guides.first_segment(clamp_unit(uy)).min(last);
+        let j = self.marginal_guide.first_segment(clamp_unit(uy)).min(last);
         if let (Some(&a), Some(&b)) = (self.offsets.get(j), self.offsets.get(j + 1)) {
             let (a, b) = (a as usize, b as usize);
             acdf_core::search::prefetch(&self.conditionals, 2 * a, 2 * (b - a));
@@ -1000,12 +1000,12 @@ impl Distribution2D for AdaptiveCdf2D {
     }
 
     /// Marginal vertices + offsets + conditional vertices + the marginal's
-    /// guides, in bytes.
+    /// guide, in bytes.
     fn storage_bytes(&self) -> usize {
         std::mem::size_of_val(&*self.marginal)
             + std::mem::size_of_val(&*self.offsets)
             + std::mem::size_of_val(&*self.conditionals)
-            + self.marginal_guides.bytes()
+            + self.marginal_guide.bytes()
     }
 }
 

@@ -663,6 +663,17 @@ impl PiecewiseConstant2D {
         search::prefetch(&self.conditional, row * self.nx, self.nx);
     }
 
+    /// The sample for `u` (clamped into [0, 1)^2) with its row j and
+    /// column k.
+    #[inline(always)]
+    fn draw(&self, u: Vec2) -> (Sample2D, usize, usize) {
+        let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
+        self.prefetch_likely_row(u.y);
+        let j = self.row(u.y);
+        let k = self.column(j, u.x);
+        (self.finish(j, k, u), j, k)
+    }
+
     /// The sample for a clamped `u` once its row j and column k are known.
     #[inline(always)]
     fn finish(&self, j: usize, k: usize, u: Vec2) -> Sample2D {
@@ -689,15 +700,11 @@ impl PiecewiseConstant2D {
     /// [`same_cell_around`](Self::same_cell_around)`(sample.p, margin)` at
     /// once. The draw knows its cell (k, j), so the box test takes the
     /// fraction of x within the cell as x nx - k instead of truncating x nx
-    /// ([`inside_drawn_cell`]): the same answer, a few instructions fewer
+    /// (`inside_drawn_cell`): the same answer, a few instructions fewer
     /// on every draw.
     #[inline(always)]
     pub fn sample_and_same_cell(&self, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
-        let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
-        self.prefetch_likely_row(u.y);
-        let j = self.row(u.y);
-        let k = self.column(j, u.x);
-        let s = self.finish(j, k, u);
+        let (s, j, k) = self.draw(u);
         // `&`: no short-circuit branch.
         let same = inside_drawn_cell(s.p.x, k, self.scale.nxf, margin.x)
             & inside_drawn_cell(s.p.y, j, self.scale.nyf, margin.y);
@@ -738,11 +745,7 @@ impl Distribution2D for PiecewiseConstant2D {
     /// conditional with u.x; density ny (M_j - M_{j-1}) · nx (C_k - C_{k-1}).
     #[inline(always)]
     fn sample(&self, u: Vec2) -> Sample2D {
-        let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
-        self.prefetch_likely_row(u.y);
-        let j = self.row(u.y);
-        let k = self.column(j, u.x);
-        self.finish(j, k, u)
+        self.draw(u).0
     }
 
     /// The same densities as [`pdf`](Distribution2D::pdf), bit for bit:
