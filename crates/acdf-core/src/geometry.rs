@@ -58,7 +58,14 @@ pub fn spherical_direction(theta: f32, phi: f32) -> Vec3 {
 /// gives `w` back.
 #[inline(always)]
 pub fn reflect(w: Vec3, h: Vec3) -> Vec3 {
-    2.0 * w.dot(h) * h - w
+    reflect_given_dot(w, h, w.dot(h))
+}
+
+/// [`reflect`] for a caller that already holds w·h (found another way,
+/// e.g. in other axes): 2 (w·h) h - w.
+#[inline(always)]
+pub fn reflect_given_dot(w: Vec3, h: Vec3, w_dot_h: f32) -> Vec3 {
+    2.0 * w_dot_h * h - w
 }
 
 /// The half vector h = (wi + wo) / |wi + wo|, or `None` when the two

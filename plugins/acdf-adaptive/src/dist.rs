@@ -572,6 +572,7 @@ impl AdaptiveCdf2D {
     #[inline(always)]
     fn prefetch_likely_conditional(&self, uy: f32) {
         let last = self.offsets.len().saturating_sub(2);
+        // Clamped as the draw clamps it, so the compiler shares the two.
         let j = self.marginal_guide.first_segment(clamp_unit(uy)).min(last);
         if let (Some(&a), Some(&b)) = (self.offsets.get(j), self.offsets.get(j + 1)) {
             let (a, b) = (a as usize, b as usize);

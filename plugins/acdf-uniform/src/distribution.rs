@@ -639,13 +639,16 @@ impl PiecewiseConstant2D {
     /// constant G ([`MARGINAL_GUIDE_CELLS`]) rather than the stored scale.
     #[inline(always)]
     fn row(&self, v: f32) -> usize {
-        const G: f32 = MARGINAL_GUIDE_CELLS as f32;
         let guide = &self.marginal_guide;
         if guide.is_empty() {
             return count_at_or_below(&self.marginal[..self.ny - 1], v);
         }
         debug_assert_eq!(guide.cells, MARGINAL_GUIDE_CELLS);
-        guide.count_from_cell(&self.marginal, v, grid_cell(v * G, G - 1.0))
+        guide.count_from_cell(
+            &self.marginal,
+            v,
+            search::Guide::cell(v, MARGINAL_GUIDE_CELLS),
+        )
     }
 
     /// Start loading the conditional row that a draw with this v = u.y
@@ -657,8 +660,7 @@ impl PiecewiseConstant2D {
     /// interval's last row as well gained nothing more).
     #[inline(always)]
     fn prefetch_likely_row(&self, v: f32) {
-        const G: f32 = MARGINAL_GUIDE_CELLS as f32;
-        let g = grid_cell(v * G, G - 1.0);
+        let g = search::Guide::cell(v, MARGINAL_GUIDE_CELLS);
         let row = self.marginal_guide.index.first(g);
         search::prefetch(&self.conditional, row * self.nx, self.nx);
     }

@@ -5,7 +5,7 @@ use crate::distribution::{count_at_or_below, count_linear, GUIDE_WINDOW, LINEAR_
 use crate::tabulate::{phi_o_cell, tabulate_slice, unit_cell, HalfMap};
 use crate::{PiecewiseConstant2D, Resolution};
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
-use acdf_core::geometry::{sin_theta, wrap_angle};
+use acdf_core::geometry::{reflect_given_dot, sin_theta, wrap_angle};
 use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use acdf_core::{
     clamp_unit, is_valid_outgoing, Brdf, BxdfSample, BxdfSampler, Distribution2D, Error, Result,
@@ -844,7 +844,6 @@ impl SliceGeometry {
             (wo_h >= 0.125) & (wo_h * sin_h >= 1.0 / 128.0) & (s.p.y >= self.map.cap_top());
         TableDraw {
             wi,
-            denominator,
             table: s.pdf / denominator,
             shortcut_geometry,
         }
@@ -884,9 +883,7 @@ impl SliceGeometry {
 struct TableDraw {
     /// wi = reflect(wo, h), unit length.
     wi: Vec3,
-    /// J(v) · 4 (wo·h) at the drawn point.
-    denominator: f32,
-    /// The drawn cell's density over solid angle, p_xv / denominator.
+    /// The drawn cell's density over solid angle, p_xv / (J(v) · 4 (wo·h)).
     table: f32,
     /// Whether wo·h and θ_h are far enough from 0 (and v outside the cap
     /// row) for `table` to stand for `pdf(wo, wi)`, given that the slice
@@ -956,7 +953,7 @@ impl TableCoordinates {
 /// vectorise as before.
 #[inline(always)]
 fn unit_reflection(wo: Vec3, h: Vec3, wo_h: f32) -> Vec3 {
-    let w = 2.0 * wo_h * h - wo;
+    let w = reflect_given_dot(wo, h, wo_h);
     let wo_length_squared = wo.length_squared();
     if (wo_length_squared - 1.0).abs() < 1e-3 {
         w * (1.5 - 0.5 * wo_length_squared)

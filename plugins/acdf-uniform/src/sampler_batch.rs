@@ -40,7 +40,6 @@ struct DrawLanes {
     wi_x: [f32; BATCH_CHUNK],
     wi_y: [f32; BATCH_CHUNK],
     wi_z: [f32; BATCH_CHUNK],
-    denominator: [f32; BATCH_CHUNK],
     table: [f32; BATCH_CHUNK],
     shortcut_geometry: [bool; BATCH_CHUNK],
 }
@@ -51,7 +50,6 @@ impl DrawLanes {
             wi_x: [0.0; BATCH_CHUNK],
             wi_y: [0.0; BATCH_CHUNK],
             wi_z: [0.0; BATCH_CHUNK],
-            denominator: [0.0; BATCH_CHUNK],
             table: [0.0; BATCH_CHUNK],
             shortcut_geometry: [false; BATCH_CHUNK],
         }
@@ -62,7 +60,6 @@ impl DrawLanes {
     fn get(&self, l: usize) -> TableDraw {
         TableDraw {
             wi: Vec3::new(self.wi_x[l], self.wi_y[l], self.wi_z[l]),
-            denominator: self.denominator[l],
             table: self.table[l],
             shortcut_geometry: self.shortcut_geometry[l],
         }
@@ -134,7 +131,6 @@ fn draw_lanes_generic<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut D
         out.wi_x[l] = d.wi.x;
         out.wi_y[l] = d.wi.y;
         out.wi_z[l] = d.wi.z;
-        out.denominator[l] = d.denominator;
         out.table[l] = d.table;
         out.shortcut_geometry[l] = d.shortcut_geometry;
     }
