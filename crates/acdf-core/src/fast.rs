@@ -1,10 +1,12 @@
-//! Polynomial arctangent and sine/cosine for the samplers' hot paths.
+//! Arctangent and sine/cosine for the samplers' hot paths.
 //!
 //! A sampler maps a half vector to table coordinates (two arctangents) and
 //! back (a sine and cosine per axis) on every draw and every density; the
-//! libm functions cost more than the table search itself. These versions are
-//! branch-free polynomials, accurate to a few 1e-7 rad, with no libm call,
-//! and they are the same in `sample` and `pdf`, so the two stay consistent.
+//! libm functions cost more than the table search itself. These versions
+//! are branch-free (a polynomial for the arctangent, a table of 64 angles
+//! and short polynomials for the sine and cosine), accurate to a few 1e-7
+//! rad, with no libm call, and they are the same in `sample` and `pdf`, so
+//! the two stay consistent.
 
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -113,168 +115,196 @@ pub fn grid_cell(t: f32, top: f32) -> usize {
     unsafe { t.to_int_unchecked::<u32>() as usize }
 }
 
-/// (sin 2πt, cos 2πt) for an angle t in turns: [`sin_cos_quarter_turns`]
-/// of 4t (exact, a power-of-two scaling).
-#[inline(always)]
-pub fn sin_cos_turns(t: f32) -> (f32, f32) {
-    sin_cos_quarter_turns(t * 4.0)
-}
-
 /// 1.5 · 2^23: added to an `f32` of magnitude below 2^22 and taken away
 /// again, it leaves the value rounded to the nearest integer (ties to even),
 /// since the sum's unit in the last place is 1.
 const ROUND_TO_INTEGER: f32 = 12_582_912.0;
 
-/// Taylor coefficients of sin(πr/2) / r in powers of r², to r⁸ (degree
-/// 9): (-1)^k (π/2)^(2k+1) / (2k+1)!, so that the polynomial takes the
-/// remainder r in quarter turns without first scaling it to radians.
-const SIN_QUARTER_TAYLOR: [f32; 5] = [
-    1.570_796_4,
-    -0.645_964_1,
-    0.079_692_624,
-    -0.004_681_754,
-    0.000_160_441_18,
-];
+/// Entries of [`TURN_TABLE`], one per 64th of a turn: a power of two, so
+/// that the entry of an angle is the low bits of its rounded step count.
+const TURN_STEPS: usize = 64;
 
-/// Taylor coefficients of cos(πr/2) in powers of r², to r⁸: (-1)^k
-/// (π/2)^(2k) / (2k)!.
-const COS_QUARTER_TAYLOR: [f32; 5] = [
-    1.0,
-    -1.233_700_5,
-    0.253_669_5,
-    -0.020_863_48,
-    0.000_919_260_26,
-];
+/// One step of the table, 2π/64 radians, in `f64`.
+const STEP: f64 = std::f64::consts::TAU / TURN_STEPS as f64;
 
-/// (sin(πs/2), cos(πs/2)) for an angle s in quarter turns, without a libm
-/// call: the nearest quarter turn q is split off exactly and the rest r (at
-/// most half a quarter turn, π/4, in magnitude) goes to Taylor polynomials
-/// of degree 9 (sine) and 8 (cosine) in r, whose truncation errors at
-/// r = 1/2 are 1.8e-9 and 2.5e-8. The reduction is exact for |s| < 8, so
-/// the error is that of `f32` rounding, a few 1e-8 absolute.
-///
-/// q comes from adding and removing 1.5 · 2^23, and its low bits
-/// from the bits of the sum, rather than from a conversion to an integer
-/// and back: two additions instead of a clamp and two conversions on the
-/// chain every draw's direction waits for, and no conversion at all in a
-/// loop over many angles. One call at a time the tabulated samplers'
-/// `sample` ran 2 to 6% faster (uniform 15.7-16.0 to 16.2-16.3 M/s,
-/// `adaptive:dp` 14.6-15.0 to 15.0-15.8, built-in nickel, best of 10 runs
-/// of 10^6 calls, three alternating runs on a Zen 5 machine).
-///
-/// The polynomials take r itself (their coefficients carry the powers of
-/// π/2) and the quarter turns are applied by swapping sine and cosine and
-/// flipping sign bits: one multiply fewer, and a select and an exclusive
-/// or instead of a multiply and an add, on the same chain. With the paired
-/// form in the samplers' `sample` that took the uniform sampler from 584
-/// to 567 instructions per call (callgrind, 10^5 calls) and from 17.7-18.4
-/// to 18.4-18.9 M/s, `adaptive:dp` from 14.7-15.4 to 15.2-15.9 (built-in
-/// nickel, best of 10 runs of 10^6 calls, five alternating runs on a Zen 5
-/// machine).
+/// (sin a, cos a) by their Taylor series in `f64`, for |a| <= π/2: 40 terms
+/// leave only the rounding of the sum, about 1e-16, far below the `f32`
+/// rounding of the table. Run by the compiler, to fill [`TURN_TABLE`].
+const fn sin_cos_series(a: f64) -> (f64, f64) {
+    let (mut sin, mut cos) = (0.0, 0.0);
+    // term = a^n / n!; even n go to the cosine, odd n to the sine, with
+    // the sign of (-1)^(n/2). 40 terms are many more than |a| <= π/2 needs.
+    let mut term = 1.0;
+    let mut n = 0;
+    while n < 40 {
+        let signed = if (n / 2) % 2 == 0 { term } else { -term };
+        if n % 2 == 0 {
+            cos += signed;
+        } else {
+            sin += signed;
+        }
+        n += 1;
+        term *= a / n as f64;
+    }
+    (sin, cos)
+}
+
+/// (sin, cos)(2πk/64) for k = 0..64, each rounded once to `f32`.
+static TURN_TABLE: [[f32; 2]; TURN_STEPS] = {
+    let mut table = [[0.0f32; 2]; TURN_STEPS];
+    let mut k = 0;
+    while k < TURN_STEPS {
+        // The series of the angle within its quarter turn (below π/2, where
+        // its terms stay small), turned by whole quarters exactly.
+        let quarter = TURN_STEPS / 4;
+        let (s, c) = sin_cos_series(STEP * (k % quarter) as f64);
+        let (sin, cos) = match k / quarter {
+            0 => (s, c),
+            1 => (c, -s),
+            2 => (-s, -c),
+            _ => (-c, s),
+        };
+        table[k] = [sin as f32, cos as f32];
+        k += 1;
+    }
+    table
+};
+
+/// The Taylor coefficients, in powers of the remainder d in steps (|d| <=
+/// 1/2, an angle a = d · 2π/64 of at most π/64), of sin a ≈ a - a³/6 and
+/// cos a ≈ 1 - a²/2 + a⁴/24, the step's powers folded in. Their truncation
+/// errors at |a| = π/64 are 2.4e-9 and 1.9e-11.
+const SIN_1: f32 = STEP as f32;
+const SIN_3: f32 = (-STEP * STEP * STEP / 6.0) as f32;
+const COS_2: f32 = (-STEP * STEP / 2.0) as f32;
+const COS_4: f32 = (STEP * STEP * STEP * STEP / 24.0) as f32;
+
+/// (sin 2πt, cos 2πt) for an angle t in turns, without a libm call: the
+/// table entry of the nearest 64th of a turn, turned by the rest through the
+/// angle-sum formulas (`sin_cos_steps` of 64 t). Within 2e-7 of the exact
+/// values for |t| < 2^16; NaN for a NaN or infinite t.
+#[inline(always)]
+pub fn sin_cos_turns(t: f32) -> (f32, f32) {
+    sin_cos_steps(t * TURN_STEPS as f32)
+}
+
+/// (sin(πs/2), cos(πs/2)) for an angle s in quarter turns, as
+/// [`sin_cos_turns`] computes it (`sin_cos_steps` of 16 s).
 #[inline(always)]
 pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
-    let shifted = s + ROUND_TO_INTEGER;
-    let q = shifted - ROUND_TO_INTEGER;
-    // s - q is exact (|s - q| <= 1/2 and both are multiples of s's ulp).
-    let r = s - q;
-    // The polynomials in r² are evaluated in Estrin's form (pairs of terms
-    // combined with r⁴) rather than Horner's: the same number of
-    // operations but about half the chain of dependent ones, which is what
-    // a single draw waits on.
-    let r2 = r * r;
-    let r4 = r2 * r2;
-    let estrin = |c: &[f32; 5]| (c[0] + r2 * c[1]) + r4 * ((c[2] + r2 * c[3]) + r4 * c[4]);
-    let sin_r = r * estrin(&SIN_QUARTER_TAYLOR);
-    let cos_r = estrin(&COS_QUARTER_TAYLOR);
-    // (sin, cos)(r + q π/2) is (sin r, cos r) for q = 0 mod 4, (cos r,
-    // -sin r) for 1, (-sin r, -cos r) for 2 and (-cos r, sin r) for 3: an
-    // odd q swaps the two, bit 1 of q negates the sine and bit 1 of q + 1
-    // the cosine. The sum holds 2^22 + q in its mantissa, whose two low bits
-    // are those of q in two's complement. Selects and bit operations rather
-    // than a four-way branch, so that loops over many angles vectorise.
-    let bits = shifted.to_bits();
-    let (sin_u, cos_u) = if bits & 1 != 0 {
-        (cos_r, sin_r)
-    } else {
-        (sin_r, cos_r)
-    };
-    let sin_sign = (bits & 2) << 30;
-    let cos_sign = (bits.wrapping_add(1) & 2) << 30;
-    (
-        f32::from_bits(sin_u.to_bits() ^ sin_sign),
-        f32::from_bits(cos_u.to_bits() ^ cos_sign),
-    )
+    sin_cos_steps(s * (TURN_STEPS / 4) as f32)
 }
 
-/// [`sin_cos_quarter_turns`] of two angles at once, bit for bit:
-/// ((sin, cos)(π s0 / 2), (sin, cos)(π s1 / 2)).
+/// (sin, cos) of `steps` 64ths of a turn: the table entry of the nearest
+/// whole step k, turned by the rest d = steps - k (|d| <= 1/2, at most
+/// π/64 radians) through the angle-sum formulas, with the sine and cosine
+/// of d from [`SIN_1`].. [`COS_4`]. k is split off exactly for |steps| <
+/// 2^22 (angles below 2^16 turns), so the error is that of `f32` rounding:
+/// within 2e-7 of the exact values (the tests measure it). NaN and
+/// infinities give NaN.
 ///
-/// A sampler's draw needs the sine and cosine of both half-vector angles.
-/// Where the CPU has SSE2 (every x86-64) the four values are the four lanes
-/// of one register, each lane running the scalar operations of its value
-/// in the same order, so that one call costs about half the instructions
-/// of two scalar calls while a loop over many draws can keep the scalar
-/// form and still get the same bits. In the uniform sampler's `sample` it
-/// took the function from 555 to 507 instructions per call (callgrind,
-/// built-in nickel, wo changing every call, 10^5 calls).
+/// This replaced a reduction to the nearest quarter turn and polynomials
+/// of degree 9 and 8 in the rest (paired in one SIMD register for a
+/// draw's two angles): the table entry is read while d is being formed,
+/// and the short polynomials and the turn are a shorter chain, which every
+/// `sample` waits for. One call at a time (a scratch loop of the bench's
+/// calls, built-in nickel, wo changing every call, best of 10 runs of 10^6,
+/// mean of the best three of eight alternating runs, a Zen 5 machine at
+/// about 3.5 GHz) `sample` went from 17.55 to 18.11 M/s (uniform) and from
+/// 15.78 to 16.90 (`adaptive:dp`). The batch forms, which read the table
+/// by lanes ([`sin_cos_turns_each`]) where they had the polynomials in
+/// SIMD, lost about 5% (uniform `sample_batch` 62.2 to 58.1 M/s,
+/// `sample_each` 37.5 to 35.8; `adaptive:dp` 62.1 to 58.8 and 35.2 to
+/// 33.2; five alternating runs).
 #[inline(always)]
-pub fn sin_cos_quarter_turns_pair(s0: f32, s1: f32) -> ((f32, f32), (f32, f32)) {
+fn sin_cos_steps(steps: f32) -> (f32, f32) {
+    let shifted = steps + ROUND_TO_INTEGER;
+    let k = shifted - ROUND_TO_INTEGER;
+    // Exact: |steps - k| <= 1/2 and both are multiples of steps' ulp.
+    let d = steps - k;
+    // The sum holds 2^22 + k in its mantissa, whose low six bits are k mod
+    // 64 in two's complement: the entry of k, the table being periodic.
+    let [sin_k, cos_k] = TURN_TABLE[shifted.to_bits() as usize & (TURN_STEPS - 1)];
+    let d2 = d * d;
+    let sin_d = d * (SIN_1 + d2 * SIN_3);
+    let cos_d = 1.0 + d2 * (COS_2 + d2 * COS_4);
+    (sin_k * cos_d + cos_k * sin_d, cos_k * cos_d - sin_k * sin_d)
+}
+
+/// [`sin_cos_turns`] of every `turns[i]` into `sin[i]`, `cos[i]` (over the
+/// shortest of the three lengths), bit for bit: eight at a time in AVX2
+/// lanes where the CPU has it, the table read by gathers (a loop over the
+/// scalar form would read it one entry at a time).
+pub fn sin_cos_turns_each(turns: &[f32], sin: &mut [f32], cos: &mut [f32]) {
+    sin_cos_steps_each(TURN_STEPS as f32, turns, sin, cos);
+}
+
+/// [`sin_cos_quarter_turns`] of every `quarter_turns[i]`, as
+/// [`sin_cos_turns_each`] does it.
+pub fn sin_cos_quarter_turns_each(quarter_turns: &[f32], sin: &mut [f32], cos: &mut [f32]) {
+    sin_cos_steps_each((TURN_STEPS / 4) as f32, quarter_turns, sin, cos);
+}
+
+/// [`sin_cos_steps`] of `scale · angles[i]` for every i.
+fn sin_cos_steps_each(scale: f32, angles: &[f32], sin: &mut [f32], cos: &mut [f32]) {
+    let n = angles.len().min(sin.len()).min(cos.len());
+    let mut done = 0;
     #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: SSE2 is part of the x86-64 baseline.
-        unsafe { sin_cos_pair_sse2(s0, s1) }
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has just been found to support AVX2.
+        done = unsafe { sin_cos_steps_avx2(scale, &angles[..n], sin, cos) };
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        (sin_cos_quarter_turns(s0), sin_cos_quarter_turns(s1))
+    for i in done..n {
+        (sin[i], cos[i]) = sin_cos_steps(angles[i] * scale);
     }
 }
 
-/// [`sin_cos_quarter_turns_pair`] in the lanes (sin s0, cos s0, sin s1,
-/// cos s1).
+/// [`sin_cos_steps`] of `scale · angles[i]` in eight lanes at a time, the
+/// same IEEE operations in the same order; returns how many it did (a
+/// multiple of eight), leaving the rest to the caller.
+///
+/// # Safety
+/// The CPU must support AVX2; `sin` and `cos` are at least as long as
+/// `angles`.
 #[cfg(target_arch = "x86_64")]
-#[inline(always)]
-unsafe fn sin_cos_pair_sse2(s0: f32, s1: f32) -> ((f32, f32), (f32, f32)) {
+#[target_feature(enable = "avx2")]
+unsafe fn sin_cos_steps_avx2(
+    scale: f32,
+    angles: &[f32],
+    sin: &mut [f32],
+    cos: &mut [f32],
+) -> usize {
     use std::arch::x86_64::*;
-    // Lane k of the result holds the sine (even k) or cosine (odd k).
-    let lanes = |sin: f32, cos: f32| _mm_setr_ps(sin, cos, sin, cos);
-    let s = _mm_setr_ps(s0, s0, s1, s1);
-    let round = _mm_set1_ps(ROUND_TO_INTEGER);
-    let shifted = _mm_add_ps(s, round);
-    let q = _mm_sub_ps(shifted, round);
-    let r = _mm_sub_ps(s, q);
-    let r2 = _mm_mul_ps(r, r);
-    let r4 = _mm_mul_ps(r2, r2);
-    let c = |k: usize| lanes(SIN_QUARTER_TAYLOR[k], COS_QUARTER_TAYLOR[k]);
-    let estrin = _mm_add_ps(
-        _mm_add_ps(c(0), _mm_mul_ps(r2, c(1))),
-        _mm_mul_ps(
-            r4,
-            _mm_add_ps(_mm_add_ps(c(2), _mm_mul_ps(r2, c(3))), _mm_mul_ps(r4, c(4))),
-        ),
-    );
-    // The sine lanes take the factor r, the cosine lanes 1 (exact).
-    let one = _mm_set1_ps(1.0);
-    let factor = _mm_unpacklo_ps(_mm_shuffle_ps::<0b10_00_10_00>(r, r), one);
-    let unrotated = _mm_mul_ps(estrin, factor);
-    // The quarter turns of the scalar form: where q is odd each lane takes
-    // its partner's value (sine and cosine swapped), then the sign bit
-    // flips with bit 1 of q in the sine lanes and of q + 1 in the cosine
-    // lanes.
-    let bits = _mm_castps_si128(shifted);
-    let one_bit = _mm_set1_epi32(1);
-    let odd = _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_and_si128(bits, one_bit), one_bit));
-    let swapped = _mm_shuffle_ps::<0b10_11_00_01>(unrotated, unrotated);
-    let chosen = _mm_or_ps(_mm_and_ps(odd, swapped), _mm_andnot_ps(odd, unrotated));
-    let plus_one_in_cosine_lanes = _mm_setr_epi32(0, 1, 0, 1);
-    let sign = _mm_slli_epi32::<30>(_mm_and_si128(
-        _mm_add_epi32(bits, plus_one_in_cosine_lanes),
-        _mm_set1_epi32(2),
-    ));
-    let rotated = _mm_xor_ps(chosen, _mm_castsi128_ps(sign));
-    let mut out = [0.0f32; 4];
-    _mm_storeu_ps(out.as_mut_ptr(), rotated);
-    ((out[0], out[1]), (out[2], out[3]))
+    let n = angles.len() / 8 * 8;
+    assert!(sin.len() >= n && cos.len() >= n);
+    let set = _mm256_set1_ps;
+    let table = TURN_TABLE.as_ptr() as *const f32;
+    for i in (0..n).step_by(8) {
+        let steps = _mm256_mul_ps(_mm256_loadu_ps(angles.as_ptr().add(i)), set(scale));
+        let shifted = _mm256_add_ps(steps, set(ROUND_TO_INTEGER));
+        let k = _mm256_sub_ps(shifted, set(ROUND_TO_INTEGER));
+        let d = _mm256_sub_ps(steps, k);
+        // Entry k mod 64 is floats 2k and 2k + 1 of the table, read as one
+        // 8-byte pair per lane.
+        let entry = _mm256_slli_epi32::<1>(_mm256_and_si256(
+            _mm256_castps_si256(shifted),
+            _mm256_set1_epi32(TURN_STEPS as i32 - 1),
+        ));
+        let mut at = [0u32; 8];
+        _mm256_storeu_si256(at.as_mut_ptr() as *mut __m256i, entry);
+        let (sin_k, cos_k) = crate::search::lanes::load_pairs_at(|l| table.add(at[l] as usize));
+        let d2 = _mm256_mul_ps(d, d);
+        let sin_d = _mm256_mul_ps(d, _mm256_add_ps(set(SIN_1), _mm256_mul_ps(d2, set(SIN_3))));
+        let cos_d = _mm256_add_ps(
+            set(1.0),
+            _mm256_mul_ps(d2, _mm256_add_ps(set(COS_2), _mm256_mul_ps(d2, set(COS_4)))),
+        );
+        let s = _mm256_add_ps(_mm256_mul_ps(sin_k, cos_d), _mm256_mul_ps(cos_k, sin_d));
+        let c = _mm256_sub_ps(_mm256_mul_ps(cos_k, cos_d), _mm256_mul_ps(sin_k, sin_d));
+        _mm256_storeu_ps(sin.as_mut_ptr().add(i), s);
+        _mm256_storeu_ps(cos.as_mut_ptr().add(i), c);
+    }
+    n
 }
 
 #[cfg(test)]
@@ -307,20 +337,69 @@ mod tests {
         assert_eq!(truncate_i32(f32::NAN), -(1 << 30));
     }
 
-    /// The paired sine/cosine is bit for bit two calls of the scalar one,
-    /// over several turns, at the quarter-turn ties and for non-finite
-    /// input.
+    /// The many-angle forms give the scalar forms' bits in every lane and
+    /// in the tail, over several turns either way, at the half-step ties
+    /// and for non-finite input; a lane form that rounded differently (a
+    /// fused multiply-add, another order) fails here.
     #[test]
-    fn paired_sine_cosine_equals_two_calls() {
-        let mut angles: Vec<f32> = (0..=20_000).map(|k| k as f32 / 1000.0 - 8.0).collect();
-        angles.extend([0.5, -0.5, 1.5, 2.5, 3.5, 1e-30, -0.0, 7.999_999, 1e6]);
-        angles.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY]);
+    fn sine_cosine_of_many_equals_one_at_a_time() {
+        let mut angles: Vec<f32> = (0..=20_001).map(|k| k as f32 / 1000.0 - 8.0).collect();
+        angles.extend((0..200).map(|k| (k as f32 + 0.5) / 64.0));
+        angles.extend([
+            1e-30,
+            -0.0,
+            7.999_999,
+            1e6,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ]);
         let bits = |(s, c): (f32, f32)| (s.to_bits(), c.to_bits());
-        for (i, &s0) in angles.iter().enumerate() {
-            let s1 = angles[(i * 7919 + 13) % angles.len()];
-            let (first, second) = sin_cos_quarter_turns_pair(s0, s1);
-            assert_eq!(bits(first), bits(sin_cos_quarter_turns(s0)), "{s0}");
-            assert_eq!(bits(second), bits(sin_cos_quarter_turns(s1)), "{s1}");
+        for len in [angles.len(), 7, 8, 9] {
+            let angles = &angles[angles.len() - len..];
+            let (mut sin, mut cos) = (vec![0.0; len], vec![0.0; len]);
+            sin_cos_turns_each(angles, &mut sin, &mut cos);
+            for (i, &t) in angles.iter().enumerate() {
+                assert_eq!(bits((sin[i], cos[i])), bits(sin_cos_turns(t)), "turns {t}");
+            }
+            sin_cos_quarter_turns_each(angles, &mut sin, &mut cos);
+            for (i, &s) in angles.iter().enumerate() {
+                assert_eq!(
+                    bits((sin[i], cos[i])),
+                    bits(sin_cos_quarter_turns(s)),
+                    "quarter turns {s}"
+                );
+            }
+        }
+    }
+
+    /// The table holds the f32 rounding of each 64th of a turn (the series
+    /// run at compile time is right), its entries are periodic in the low
+    /// bits of negative step counts too, and non-finite angles give NaN.
+    #[test]
+    fn turn_table_and_reduction() {
+        // Half an f32 ulp of the value, and 1e-15 for the zeros, which the
+        // f64 angle only approximates.
+        let rounded =
+            |v: f32, exact: f64| (v as f64 - exact).abs() <= exact.abs() * 2f64.powi(-24) + 1e-15;
+        for (k, &[s, c]) in TURN_TABLE.iter().enumerate() {
+            let a = STEP * k as f64;
+            assert!(
+                rounded(s, a.sin()) && rounded(c, a.cos()),
+                "entry {k}: {s} {c}"
+            );
+        }
+        for k in -130..130 {
+            let (s, c) = sin_cos_turns(k as f32 / 64.0);
+            let a = std::f64::consts::TAU * k as f64 / 64.0;
+            assert!(
+                (s as f64 - a.sin()).abs() < 1e-7 && (c as f64 - a.cos()).abs() < 1e-7,
+                "{k}"
+            );
+        }
+        for t in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let (s, c) = sin_cos_turns(t);
+            assert!(s.is_nan() && c.is_nan(), "{t}");
         }
     }
 
@@ -386,5 +465,6 @@ mod tests {
                 .max((c as f64 - a.cos()).abs());
         }
         assert!(worst_sin_cos < 2e-7, "sin/cos error {worst_sin_cos}");
+        eprintln!("worst sin/cos error {worst_sin_cos:e}");
     }
 }

@@ -204,17 +204,13 @@ pub type UniformBrdfSampler = TabulatedBrdfSampler<PiecewiseConstantBuilder>;
 ///   `pdf`, which agrees exactly. A draw whose density comes out 0 or
 ///   non-finite (below the horizon, or a half vector whose recomputed cell
 ///   has zero density) is `None`.
-/// - **Speed.** The half-vector maps use polynomial sine, cosine and
-///   arctangent ([`fast_atan2`],
-///   [`sin_cos_turns`], within a few 1e-7
-///   rad), the same in `sample` and `pdf`, and the θ_o cell is counted
-///   from cos θ_o without an arctangent. One call is a chain of dependent
-///   steps (cell, two searches, trigonometry, reflection); where the CPU
-///   has AVX2 it runs a copy compiled for it, and `sample` computes the
-///   sines and cosines of both half-vector angles in the lanes of one
-///   register
-///   ([`sin_cos_quarter_turns_pair`](acdf_core::fast::sin_cos_quarter_turns_pair),
-///   bit for bit the scalar form the batch loops use). The batch entry points
+/// - **Speed.** The half-vector maps use a polynomial arctangent
+///   ([`fast_atan2`]) and a sine and cosine from a table of 64 angles and
+///   short polynomials ([`sin_cos_turns`]), within a few 1e-7 rad and the
+///   same in `sample` and `pdf`, and the θ_o cell is counted from cos θ_o
+///   without an arctangent. One call is a chain of dependent steps (cell,
+///   two searches, trigonometry, reflection); where the CPU has AVX2 it
+///   runs a copy compiled for it. The batch entry points
 ///   overlap many draws instead: `sample_batch` and `pdf_batch` (one wo)
 ///   and `sample_each` and `pdf_each` (one wo per pair) search a chunk of
 ///   draws, then compute the geometry of the whole chunk as SIMD lanes (see
@@ -522,9 +518,9 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         }
         let shortcut = self.shortcut_cells && draw.shortcut_geometry && same_cell();
         // A cell density that is positive and finite (a denominator at or
-        // below zero makes it negative or infinite): two compares, no
-        // branch; anything else takes the exact density.
-        let usable = (draw.table > 0.0) & (draw.table < f32::INFINITY);
+        // below zero makes it negative or infinite); anything else takes
+        // the exact density.
+        let usable = is_positive_finite(draw.table);
         let pdf = if shortcut && usable {
             self.mix_with_cosine(draw.table, wi)
         } else {
@@ -753,10 +749,10 @@ impl<D> Slice<'_, D> {
         }
     }
 
-    /// See [`SliceGeometry::draw_one`].
+    /// See [`SliceGeometry::draw`].
     #[inline(always)]
     fn draw(&self, wo: Vec3, s: Sample2D) -> TableDraw {
-        self.geometry().draw_one(wo, s)
+        self.geometry().draw(wo, s)
     }
 
     /// See [`SliceGeometry::coordinates_of`].
@@ -782,14 +778,6 @@ impl SliceGeometry {
         (self.map.angles(p.y), sin_cos_turns(p.x))
     }
 
-    /// [`angles_of`](Self::angles_of), bit for bit, with the two angles'
-    /// sines and cosines computed together
-    /// ([`HalfMap::angles_and_azimuth`]): the form for one draw at a time.
-    #[inline(always)]
-    fn angles_of_one(&self, p: Vec2) -> Angles {
-        self.map.angles_and_azimuth(p.y, p.x)
-    }
-
     /// The slice-axes vector `v` in the shading frame (the rotation).
     #[inline(always)]
     fn to_shading(self, v: Vec3) -> Vec3 {
@@ -806,18 +794,13 @@ impl SliceGeometry {
     }
 
     /// The direction of the table draw `s` and the density its cell gives
-    /// it (see `finish_table_draw`). Free of branches, so that the batch
-    /// path's loop over a chunk of draws compiles to SIMD.
+    /// it (see `finish_table_draw`). The batch paths compute the angles of
+    /// a chunk of draws together (`AngleLanes` in `sampler_batch.rs`), then
+    /// the rest as here, in [`draw_from_angles`](Self::draw_from_angles),
+    /// which is free of branches so that their loop compiles to SIMD.
     #[inline(always)]
     fn draw(&self, wo: Vec3, s: Sample2D) -> TableDraw {
         self.draw_from_angles(wo, s, self.angles_of(s.p))
-    }
-
-    /// [`draw`](Self::draw), bit for bit, for one draw at a time (see
-    /// [`angles_of_one`](Self::angles_of_one)).
-    #[inline(always)]
-    fn draw_one(&self, wo: Vec3, s: Sample2D) -> TableDraw {
-        self.draw_from_angles(wo, s, self.angles_of_one(s.p))
     }
 
     /// [`draw`](Self::draw) once the half vector's angles are known.
@@ -969,6 +952,16 @@ fn unit_reflection(wo: Vec3, h: Vec3, wo_h: f32) -> Vec3 {
 
 /// ((sin, cos) θ_h, (sin, cos) φ_h) of a half vector in a slice's axes.
 type Angles = ((f32, f32), (f32, f32));
+
+/// Whether `v` is positive (not zero) and finite: its bit pattern, less
+/// one, is below that of the largest finite `f32` (zero wraps around,
+/// negative values, infinity and NaN are above). Written as the two
+/// compares `v > 0.0 && v < ∞`, the compiler turned it into a classification
+/// of the bits in a dozen integer instructions on every draw; this is three.
+#[inline(always)]
+fn is_positive_finite(v: f32) -> bool {
+    v.to_bits().wrapping_sub(1) < f32::MAX.to_bits()
+}
 
 /// φ / 2π of a direction, in [0, 1): `acdf_core::geometry::phi` without
 /// libm (see [`fast_atan2`]) for the sampler's hot path.

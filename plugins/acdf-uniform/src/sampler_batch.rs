@@ -6,8 +6,9 @@
 //! (two sine/cosine pairs, a reflection, a Jacobian), then a check of the
 //! drawn cell. The searches of a chunk go through the builder
 //! (`SliceBuilder::sample_batch_and_same_cell`, or the slices' own
-//! `sample_each` stages for a wavefront); the geometry of the whole chunk
-//! runs as one loop over lanes ([`Slice::draw`] and
+//! `sample_each` stages for a wavefront); the sines and cosines of the
+//! chunk's angles are computed many at a time (they read a table), and
+//! the rest of the geometry of the whole chunk runs as one loop over lanes ([`Slice::draw`] and
 //! [`Slice::coordinates_of`] have no branches), which the compiler turns
 //! into SIMD, 8 lanes wide where the CPU has AVX2 (selected at run time);
 //! the per-draw checks and any exact recomputation follow lane by lane.
@@ -25,6 +26,7 @@ use super::{
 };
 use crate::tabulate::HalfMap;
 use crate::SliceBuilder;
+use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{clamp_unit, is_valid_outgoing, BxdfSample, Distribution2D, Sample2D, Vec2, Vec3};
 
 /// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
@@ -122,12 +124,63 @@ impl LaneFrames for OneFrame {
     }
 }
 
-/// [`SliceGeometry::draw`] of every lane, into `out`. The frames are read
-/// by value, so the loop body depends on nothing the stores could change.
+/// The outer-map sines and cosines of a chunk's half-vector angles (θ_h =
+/// (π/2) v² and φ_h = 2π x, see [`SliceGeometry::angles_of`]).
+struct AngleLanes {
+    sin_theta: [f32; BATCH_CHUNK],
+    cos_theta: [f32; BATCH_CHUNK],
+    sin_phi: [f32; BATCH_CHUNK],
+    cos_phi: [f32; BATCH_CHUNK],
+}
+
+impl AngleLanes {
+    /// The angles of the draws, computed many at a time
+    /// ([`sin_cos_turns_each`]): the sine and cosine read a table, which a
+    /// loop of `angles_of` would do one lane at a time rather than in SIMD.
+    fn of(drawn: &[Sample2D]) -> Self {
+        let n = drawn.len().min(BATCH_CHUNK);
+        let (mut squares, mut xs) = ([0.0f32; BATCH_CHUNK], [0.0f32; BATCH_CHUNK]);
+        for l in 0..n {
+            // θ_h in quarter turns, as `HalfMap::angles` takes it.
+            squares[l] = drawn[l].p.y * drawn[l].p.y;
+            xs[l] = drawn[l].p.x;
+        }
+        let mut angles = AngleLanes {
+            sin_theta: [0.0; BATCH_CHUNK],
+            cos_theta: [0.0; BATCH_CHUNK],
+            sin_phi: [0.0; BATCH_CHUNK],
+            cos_phi: [0.0; BATCH_CHUNK],
+        };
+        sin_cos_quarter_turns_each(&squares[..n], &mut angles.sin_theta, &mut angles.cos_theta);
+        sin_cos_turns_each(&xs[..n], &mut angles.sin_phi, &mut angles.cos_phi);
+        angles
+    }
+
+    /// Lane l's angles as [`SliceGeometry::angles_of`] gives them, bit for
+    /// bit (the polar cap's map in the first row).
+    #[inline(always)]
+    fn get(&self, map: &HalfMap, v: f32, l: usize) -> ((f32, f32), (f32, f32)) {
+        (
+            map.polar(v, || (self.sin_theta[l], self.cos_theta[l])),
+            (self.sin_phi[l], self.cos_phi[l]),
+        )
+    }
+}
+
+/// [`SliceGeometry::draw`] of every lane, into `out`, the angles from
+/// `angles`. The frames are read by value, so the loop body depends on
+/// nothing the stores could change.
 #[inline(always)]
-fn draw_lanes_generic<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
+fn draw_lanes_generic<F: LaneFrames>(
+    frames: &F,
+    drawn: &[Sample2D],
+    angles: &AngleLanes,
+    out: &mut DrawLanes,
+) {
     for l in 0..drawn.len().min(BATCH_CHUNK) {
-        let d = frames.geometry(l).draw(frames.wo(l), drawn[l]);
+        let geometry = frames.geometry(l);
+        let s = drawn[l];
+        let d = geometry.draw_from_angles(frames.wo(l), s, angles.get(&geometry.map, s.p.y, l));
         out.wi_x[l] = d.wi.x;
         out.wi_y[l] = d.wi.y;
         out.wi_z[l] = d.wi.z;
@@ -154,8 +207,13 @@ fn coordinate_lanes_generic<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut Co
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn draw_lanes_avx2<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
-    draw_lanes_generic(frames, drawn, out);
+unsafe fn draw_lanes_avx2<F: LaneFrames>(
+    frames: &F,
+    drawn: &[Sample2D],
+    angles: &AngleLanes,
+    out: &mut DrawLanes,
+) {
+    draw_lanes_generic(frames, drawn, angles, out);
 }
 
 /// [`coordinate_lanes_generic`] compiled for AVX2.
@@ -170,13 +228,14 @@ unsafe fn coordinate_lanes_avx2<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mu
 
 /// The table draws of a chunk carried to the shading frame.
 fn draw_lanes<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
+    let angles = AngleLanes::of(drawn);
     #[cfg(target_arch = "x86_64")]
     if has_avx2() {
         // SAFETY: the CPU has just been found to support AVX2 and FMA.
-        unsafe { draw_lanes_avx2(frames, drawn, out) };
+        unsafe { draw_lanes_avx2(frames, drawn, &angles, out) };
         return;
     }
-    draw_lanes_generic(frames, drawn, out);
+    draw_lanes_generic(frames, drawn, &angles, out);
 }
 
 /// The table coordinates of a chunk of incident directions.

@@ -499,3 +499,35 @@ fn lazy_building_is_thread_safe() {
     assert_eq!(s.resolution(), small_iso());
     assert!(s.is_relative_phi());
 }
+
+/// The bit test of a usable cell density accepts exactly the positive
+/// finite values: the extremes of both float classes, and not zero of
+/// either sign, negatives, infinities or NaN.
+#[test]
+fn positive_finite_is_the_two_compares() {
+    let mut values = vec![
+        0.0f32,
+        -0.0,
+        f32::from_bits(1),
+        -f32::from_bits(1),
+        f32::MIN_POSITIVE,
+        f32::MAX,
+        -f32::MAX,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+        -f32::NAN,
+        f32::from_bits(0x7fc0_0001),
+        1.0,
+        -1.0,
+    ];
+    values.extend((0..64).map(|k| f32::from_bits(0x0123_4567u32.wrapping_mul(k * 2 + 1))));
+    for v in values {
+        assert_eq!(
+            is_positive_finite(v),
+            v > 0.0 && v < f32::INFINITY,
+            "{v:e} ({:#x})",
+            v.to_bits()
+        );
+    }
+}

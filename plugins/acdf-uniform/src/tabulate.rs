@@ -26,7 +26,7 @@
 //! [`validate_table`](acdf_core::validate_table).
 
 use crate::Resolution;
-use acdf_core::fast::{fast_atan2, sin_cos_quarter_turns, sin_cos_quarter_turns_pair};
+use acdf_core::fast::{fast_atan2, sin_cos_quarter_turns};
 use acdf_core::geometry::{reflect, spherical_direction};
 use acdf_core::{Brdf, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
@@ -146,18 +146,6 @@ impl HalfMap {
         self.polar(v, || sin_cos_quarter_turns(v * v))
     }
 
-    /// ([`angles`](Self::angles) of v, (sin 2πx, cos 2πx)) with the two
-    /// outer-map sine/cosine pairs computed together
-    /// ([`sin_cos_quarter_turns_pair`]), bit for bit as the separate calls:
-    /// the form for one draw at a time, where the pair costs about half the
-    /// instructions.
-    #[inline(always)]
-    pub fn angles_and_azimuth(&self, v: f32, x: f32) -> ((f32, f32), (f32, f32)) {
-        // θ_h = (π/2) v² is v² quarter turns, 2πx is 4x.
-        let (outer, azimuth) = sin_cos_quarter_turns_pair(v * v, x * 4.0);
-        (self.polar(v, || outer), azimuth)
-    }
-
     /// (sin θ_h, cos θ_h) at v: `outer()` above the cap, the cap map below.
     ///
     /// Only the formula of v's side of the cap is computed: one draw at a
@@ -168,7 +156,7 @@ impl HalfMap {
     /// vectorise. [`v_of`](Self::v_of) and [`jacobian`](Self::jacobian)
     /// compute both formulas and select one.
     #[inline(always)]
-    fn polar(&self, v: f32, outer: impl FnOnce() -> (f32, f32)) -> (f32, f32) {
+    pub(crate) fn polar(&self, v: f32, outer: impl FnOnce() -> (f32, f32)) -> (f32, f32) {
         if v >= self.v1 {
             return outer();
         }
