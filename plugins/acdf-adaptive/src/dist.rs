@@ -273,6 +273,9 @@ pub struct AdaptiveCdf2D {
     pub(crate) integral: f64,
     /// The guide of the marginal's CDF values, derived from it.
     pub(crate) marginal_guide: CurveGuide,
+    /// The most vertices of any conditional, derived from the offsets: the
+    /// batch searches take their number of steps from it.
+    pub(crate) longest_conditional: usize,
 }
 
 impl AdaptiveCdf2D {
@@ -506,8 +509,14 @@ impl AdaptiveCdf2D {
         conditionals: Vec<f32>,
         integral: f64,
     ) -> Self {
+        let longest_conditional = offsets
+            .windows(2)
+            .map(|o| o[1].saturating_sub(o[0]) as usize)
+            .max()
+            .unwrap_or(0);
         AdaptiveCdf2D {
             marginal_guide: CurveGuide::new(&marginal),
+            longest_conditional,
             marginal: marginal.into_boxed_slice(),
             offsets: offsets.into_boxed_slice(),
             conditionals: conditionals.into_boxed_slice(),
