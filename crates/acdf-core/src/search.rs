@@ -161,7 +161,8 @@ pub fn count_short_or_search(data: &[f32], start: usize, len: usize, v: f32) -> 
 /// Ask the CPU to bring `data[start..start + len]` into the first-level
 /// cache without waiting for it: its first, middle and last cache lines
 /// (all of a list of up to 48 entries). A hint with no effect on any
-/// result; indices past the end are clamped to the last entry.
+/// result: addresses past the end of `data` are allowed (a prefetch never
+/// faults), so none are clamped.
 ///
 /// A draw reads its conditional only after searching the marginal, one
 /// cache miss after another on the chain of dependent steps; asking for the
@@ -172,17 +173,11 @@ pub fn prefetch(data: &[f32], start: usize, len: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let Some(last) = data.len().checked_sub(1) else {
-            return;
-        };
-        let end = start.saturating_add(len.saturating_sub(1));
-        for i in [start, start / 2 + end / 2, end] {
-            // In bounds (clamped), and a prefetch reads nothing the program
-            // sees.
-            let p = data.as_ptr().wrapping_add(i.min(last)) as *const i8;
-            // SAFETY: SSE is part of the x86-64 baseline; the hint may name
-            // any address.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p) };
+        let first = data.as_ptr().wrapping_add(start);
+        for offset in [0, len / 2, len.wrapping_sub(1)] {
+            // SAFETY: SSE is part of the x86-64 baseline, and a prefetch
+            // reads nothing the program sees: it may name any address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(offset) as *const i8) };
         }
     }
     #[cfg(not(target_arch = "x86_64"))]

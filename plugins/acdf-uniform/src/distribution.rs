@@ -289,8 +289,13 @@ fn within_cell(cdf: &[f32], k: usize, u: f32) -> (f32, f32) {
 /// `pdf(x)` finds the cell it was drawn from).
 #[inline(always)]
 fn position_in_cell(k: usize, du: f32, n: usize, nf: f32, inv: f32) -> f32 {
-    let mut x = ((k as u32 as f32 + du) * inv).min(ONE_MINUS_EPSILON);
-    if cell_of(x, n, nf) == k {
+    let kf = k as u32 as f32;
+    let mut x = ((kf + du) * inv).min(ONE_MINUS_EPSILON);
+    // x n - k in [0, 1) is floor(x n) = k, which is `cell_of(x) == k` for
+    // the k < n of a draw: the form the box test of the draw computes too
+    // (`inside_drawn_cell`), so the two share it.
+    let f = x * nf - kf;
+    if (0.0..1.0).contains(&f) {
         return x;
     }
     // Rare: rounding put x on a boundary. A couple of ulps always suffice.
@@ -1174,6 +1179,41 @@ mod tests {
             }
         }
         assert!(checked > 1000);
+    }
+
+    /// The position of a draw lands in its cell for every grid size,
+    /// every cell and fractions up to the largest below 1, and is the
+    /// position first computed whenever that one is in the cell (the
+    /// shortcut test x n - k in [0, 1) accepts what `cell_of` accepts).
+    #[test]
+    fn positions_stay_in_their_cells() {
+        let mut nudged = 0;
+        for n in [1usize, 3, 7, 32, 100, 255, 256, 1000, 4096] {
+            let nf = n as f32;
+            let inv = 1.0 / nf;
+            for k in (0..n).step_by((n / 23).max(1)).chain([n - 1]) {
+                let mut fractions = vec![0.0f32, 1e-30, 0.25, 0.5, ONE_MINUS_EPSILON];
+                let mut d = ONE_MINUS_EPSILON;
+                for _ in 0..40 {
+                    d = d.next_down();
+                    fractions.push(d);
+                }
+                for du in fractions {
+                    let x = position_in_cell(k, du, n, nf, inv);
+                    assert_eq!(cell_of(x, n, nf), k, "n {n} k {k} du {du}");
+                    assert!((0.0..1.0).contains(&x));
+                    let first = ((k as f32 + du) * inv).min(ONE_MINUS_EPSILON);
+                    if cell_of(first, n, nf) == k {
+                        assert_eq!(x.to_bits(), first.to_bits(), "n {n} k {k} du {du}");
+                    } else {
+                        nudged += 1;
+                    }
+                }
+            }
+        }
+        // Rounding carries some positions out of their cell: the slow
+        // path is exercised.
+        assert!(nudged > 0);
     }
 
     #[test]
