@@ -211,11 +211,12 @@ pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
 /// calls, built-in nickel, wo changing every call, best of 10 runs of 10^6,
 /// mean of the best three of eight alternating runs, a Zen 5 machine at
 /// about 3.5 GHz) `sample` went from 17.55 to 18.11 M/s (uniform) and from
-/// 15.78 to 16.90 (`adaptive:dp`). The batch forms, which read the table
-/// by lanes ([`sin_cos_turns_each`]) where they had the polynomials in
-/// SIMD, lost about 5% (uniform `sample_batch` 62.2 to 58.1 M/s,
-/// `sample_each` 37.5 to 35.8; `adaptive:dp` 62.1 to 58.8 and 35.2 to
-/// 33.2; five alternating runs).
+/// 15.78 to 16.90 (`adaptive:dp`). The batch forms, which pick the table
+/// entries in their lanes ([`sin_cos_turns_each`]) where they had the
+/// polynomials in SIMD, stayed within 1 to 4% of their speed (a scratch
+/// loop of the bench's calls, six alternating runs: uniform `sample_batch`
+/// 60.5 to 58.3 M/s, `sample_each` 37.5 to 36.7; `adaptive:dp` 62.7 to
+/// 61.0 and 35.1 to 34.8).
 #[inline(always)]
 fn sin_cos_steps(steps: f32) -> (f32, f32) {
     let shifted = steps + ROUND_TO_INTEGER;
@@ -233,8 +234,8 @@ fn sin_cos_steps(steps: f32) -> (f32, f32) {
 
 /// [`sin_cos_turns`] of every `turns[i]` into `sin[i]`, `cos[i]` (over the
 /// shortest of the three lengths), bit for bit: eight at a time in AVX2
-/// lanes where the CPU has it, the table read by gathers (a loop over the
-/// scalar form would read it one entry at a time).
+/// lanes where the CPU has it, the table entries picked from registers (a
+/// loop over the scalar form would read them one at a time).
 pub fn sin_cos_turns_each(turns: &[f32], sin: &mut [f32], cos: &mut [f32]) {
     sin_cos_steps_each(TURN_STEPS as f32, turns, sin, cos);
 }
@@ -278,21 +279,13 @@ unsafe fn sin_cos_steps_avx2(
     let n = angles.len() / 8 * 8;
     assert!(sin.len() >= n && cos.len() >= n);
     let set = _mm256_set1_ps;
-    let table = TURN_TABLE.as_ptr() as *const f32;
+    let quarter = QuarterLanes::load();
     for i in (0..n).step_by(8) {
         let steps = _mm256_mul_ps(_mm256_loadu_ps(angles.as_ptr().add(i)), set(scale));
         let shifted = _mm256_add_ps(steps, set(ROUND_TO_INTEGER));
         let k = _mm256_sub_ps(shifted, set(ROUND_TO_INTEGER));
         let d = _mm256_sub_ps(steps, k);
-        // Entry k mod 64 is floats 2k and 2k + 1 of the table, read as one
-        // 8-byte pair per lane.
-        let entry = _mm256_slli_epi32::<1>(_mm256_and_si256(
-            _mm256_castps_si256(shifted),
-            _mm256_set1_epi32(TURN_STEPS as i32 - 1),
-        ));
-        let mut at = [0u32; 8];
-        _mm256_storeu_si256(at.as_mut_ptr() as *mut __m256i, entry);
-        let (sin_k, cos_k) = crate::search::lanes::load_pairs_at(|l| table.add(at[l] as usize));
+        let (sin_k, cos_k) = turn_entries_lanes(_mm256_castps_si256(shifted), &quarter);
         let d2 = _mm256_mul_ps(d, d);
         let sin_d = _mm256_mul_ps(d, _mm256_add_ps(set(SIN_1), _mm256_mul_ps(d2, set(SIN_3))));
         let cos_d = _mm256_add_ps(
@@ -305,6 +298,78 @@ unsafe fn sin_cos_steps_avx2(
         _mm256_storeu_ps(cos.as_mut_ptr().add(i), c);
     }
     n
+}
+
+/// The first quarter turn of [`TURN_TABLE`] (entries 0..16) in four
+/// registers: sines of entries 0..8 and 8..16, cosines likewise.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct QuarterLanes {
+    sin: [std::arch::x86_64::__m256; 2],
+    cos: [std::arch::x86_64::__m256; 2],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl QuarterLanes {
+    #[inline(always)]
+    unsafe fn load() -> Self {
+        use std::arch::x86_64::*;
+        let column = |c: usize, from: usize| {
+            let v: [f32; 8] = std::array::from_fn(|l| TURN_TABLE[from + l][c]);
+            _mm256_loadu_ps(v.as_ptr())
+        };
+        QuarterLanes {
+            sin: [column(0, 0), column(0, 8)],
+            cos: [column(1, 0), column(1, 8)],
+        }
+    }
+}
+
+/// The table entries (sin, cos) of the step counts k mod 64 held in the low
+/// bits of `shifted`, from registers: entry 16q + r is entry r turned by q
+/// quarter turns, which swaps sine and cosine for odd q and flips their
+/// signs as the table was filled (`TURN_TABLE`), so the values are the
+/// table's bit for bit.
+///
+/// Read from memory instead, as eight 8-byte loads per eight angles whose
+/// indices were stored and reloaded, the batch forms were slower and less
+/// steady: uniform `sample_each` 35.9 and `adaptive:dp` `sample_batch`
+/// 56.9 M/s (medians 34.2 and 48.7) against 36.7 and 61.0 (medians 35.3
+/// and 60.7), built-in nickel, mean of the best three of six alternating
+/// runs of a scratch loop of the bench's calls on a Zen 5 machine.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn turn_entries_lanes(
+    shifted: std::arch::x86_64::__m256i,
+    quarter: &QuarterLanes,
+) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+    use std::arch::x86_64::*;
+    let r = _mm256_and_si256(shifted, _mm256_set1_epi32(15));
+    let q = _mm256_srli_epi32::<4>(shifted);
+    // Entries 8..16 where bit 3 of r is set.
+    let high = _mm256_castsi256_ps(_mm256_slli_epi32::<28>(r));
+    let pick = |v: &[__m256; 2]| {
+        _mm256_blendv_ps(
+            _mm256_permutevar8x32_ps(v[0], r),
+            _mm256_permutevar8x32_ps(v[1], r),
+            high,
+        )
+    };
+    let (s, c) = (pick(&quarter.sin), pick(&quarter.cos));
+    let odd = _mm256_castsi256_ps(_mm256_slli_epi32::<31>(q));
+    let (sin, cos) = (_mm256_blendv_ps(s, c, odd), _mm256_blendv_ps(c, s, odd));
+    // The sine is negated for q = 2, 3 (bit 1 of q), the cosine for q = 1,
+    // 2 (bit 1 of q + 1).
+    let two = _mm256_set1_epi32(2);
+    let sin_sign = _mm256_slli_epi32::<30>(_mm256_and_si256(q, two));
+    let cos_sign = _mm256_slli_epi32::<30>(_mm256_and_si256(
+        _mm256_add_epi32(q, _mm256_set1_epi32(1)),
+        two,
+    ));
+    (
+        _mm256_xor_ps(sin, _mm256_castsi256_ps(sin_sign)),
+        _mm256_xor_ps(cos, _mm256_castsi256_ps(cos_sign)),
+    )
 }
 
 #[cfg(test)]

@@ -326,7 +326,7 @@ impl Source for PerLane {
 /// # Safety
 /// AVX2; each `entry(l)` and the entry after it are readable.
 #[inline(always)]
-pub(crate) unsafe fn load_pairs_at(entry: impl Fn(usize) -> *const f32) -> (__m256, __m256) {
+unsafe fn load_pairs_at(entry: impl Fn(usize) -> *const f32) -> (__m256, __m256) {
     let two = |l: usize| {
         let first = _mm_load_sd(entry(l) as *const f64);
         _mm_castpd_ps(_mm_loadh_pd(first, entry(l + 1) as *const f64))
