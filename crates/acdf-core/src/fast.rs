@@ -530,6 +530,5 @@ mod tests {
                 .max((c as f64 - a.cos()).abs());
         }
         assert!(worst_sin_cos < 2e-7, "sin/cos error {worst_sin_cos}");
-        eprintln!("worst sin/cos error {worst_sin_cos:e}");
     }
 }

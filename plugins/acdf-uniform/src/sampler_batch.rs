@@ -8,10 +8,11 @@
 //! (`SliceBuilder::sample_batch_and_same_cell`, or the slices' own
 //! `sample_each` stages for a wavefront); the sines and cosines of the
 //! chunk's angles are computed many at a time (they read a table), and
-//! the rest of the geometry of the whole chunk runs as one loop over lanes ([`Slice::draw`] and
-//! [`Slice::coordinates_of`] have no branches), which the compiler turns
-//! into SIMD, 8 lanes wide where the CPU has AVX2 (selected at run time);
-//! the per-draw checks and any exact recomputation follow lane by lane.
+//! the rest of the geometry of the whole chunk runs as one loop over lanes
+//! ([`Slice::draw`] and [`Slice::coordinates_of`] have no branches), which
+//! the compiler turns into SIMD, 8 lanes wide where the CPU has AVX2
+//! (selected at run time); the per-draw checks and any exact recomputation
+//! follow lane by lane.
 //! Each lane runs the same IEEE operations in the same order as the
 //! one-at-a-time path (no fused multiply-adds are formed), so the batch
 //! results are bit-identical to `sample` and `pdf`.

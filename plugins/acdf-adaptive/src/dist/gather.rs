@@ -10,9 +10,9 @@
 //! its own distribution and all steps are gathers. Each draw's conditional
 //! is its own short list, searched for as many steps as the longest
 //! conditional of the stage's distributions needs (a number each
-//! distribution keeps, so no lane has to be read to know it). The searches bracket u by the segment's
-//! CDF values (or x by its positions, for densities); one paired gather per
-//! curve reads the other two ends.
+//! distribution keeps, so no lane has to be read to know it). The searches
+//! bracket u by the segment's CDF values (or x by its positions, for
+//! densities); one paired gather per curve reads the other two ends.
 //!
 //! The arithmetic is that of `curve::segment_samples` and
 //! `curve::segment_density`, operation for operation (the clamps as
