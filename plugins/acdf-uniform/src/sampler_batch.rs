@@ -280,7 +280,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             self.builder.sample_batch_and_same_cell(
                 slice.dist,
                 &table_u[..n],
-                Vec2::splat(CELL_MARGIN),
+                CELL_MARGIN,
                 &mut drawn[..n],
                 &mut same_cell[..n],
             );
@@ -545,7 +545,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             } else {
                 (&lane_u[..m], &mut compact[..m], &mut compact_same[..m])
             };
-            let margin = Vec2::splat(CELL_MARGIN);
+            let margin = CELL_MARGIN;
             self.builder
                 .sample_each_and_same_cell(&dists, lane_u, margin, to, to_same);
             if !every {
