@@ -159,10 +159,10 @@ fn at_or_below_mask_sse(window: &[f32; WINDOW], v: f32) -> u32 {
 /// Written as inline assembly so that it inlines into code compiled for any
 /// target features (the sampler's AVX2 copy, the baseline): an intrinsic
 /// needing AVX-512 would stay an out-of-line call there. It uses ymm16 and
-/// k1 to k4, which code compiled without AVX-512 never holds values in,
-/// and 256-bit registers 16 and up, which leave the upper state of
-/// registers 0 to 15 clean (no SSE transition penalty) and draw no 512-bit
-/// frequency licence.
+/// k1 to k4, which code compiled without AVX-512 never holds values in: a
+/// register numbered 16 or more leaves the upper halves of registers 0 to
+/// 15 clean for SSE code around it, and 256 bits rather than 512 keep
+/// clear of the lower clock some processors run 512-bit work at.
 ///
 /// A tabulated sampler's `sample` compares three such windows on every
 /// call (the θ_o cell and, for the uniform tabulation, the φ_h row; for the

@@ -468,11 +468,10 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// resolution, θ_o from 1° to 89°, was 4.6e-5; the conformance battery
     /// allows 1e-4). It is also required that the slice's density be
     /// constant over the box of half-widths [`CELL_MARGIN`] around the draw:
-    /// x' is within 6e-8 · 512 / 2π < 4.9e-6 of x, and v' within 4.1e-6 of
+    /// x' is within 6e-8 · 512 / 2π < 4.9e-6 of x, and v' within 4.2e-6 of
     /// v (counting the arctangent's 4e-7 radians in full, with v at least
-    /// 0.035 where θ_h >= 1/512); otherwise, and for tabulations
-    /// finer than the margins allow, the density is recomputed exactly as
-    /// `pdf` does.
+    /// 0.035 where θ_h >= 1/512). Otherwise, and for tabulations finer than
+    /// the margins allow, the density is recomputed exactly as `pdf` does.
     ///
     /// The bound on (wo·h) sin θ_h was 1/128 (and the density agreed to
     /// 2e-5): on the specular built-in nickel 6.4% of the draws fell below
@@ -736,9 +735,10 @@ impl ThetaOCells {
 /// over which the slice density must be constant for the drawn-cell
 /// shortcut of `sample`: 2^-15 along x and 2^-16 along v, over six and
 /// three and a half times the bounds on the error of the recomputed x' and
-/// v' (see `finish_table_draw`), and small enough that tabulations of up to 2^14
-/// cells along φ_h and 2^15 along θ_h can use it. A draw fails the box test
-/// with probability about 2 (n_x m_x + n_v m_v): 1% at 32 x 256 cells.
+/// v' (see `finish_table_draw`), and small enough that tabulations of up
+/// to 2^14 cells along φ_h and 2^15 along θ_h can use it. A draw fails the
+/// box test with probability about 2 (n_x m_x + n_v m_v): 1% at 32 x 256
+/// cells.
 const CELL_MARGIN: Vec2 = Vec2::new(1.0 / 32768.0, 1.0 / 65536.0);
 
 /// Draws per chunk of the batch path of `sample_batch`: large enough to

@@ -545,9 +545,8 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             } else {
                 (&lane_u[..m], &mut compact[..m], &mut compact_same[..m])
             };
-            let margin = CELL_MARGIN;
             self.builder
-                .sample_each_and_same_cell(&dists, lane_u, margin, to, to_same);
+                .sample_each_and_same_cell(&dists, lane_u, CELL_MARGIN, to, to_same);
             if !every {
                 for (k, &l) in lane_of[..m].iter().enumerate() {
                     drawn[l] = compact[k];
