@@ -154,7 +154,8 @@ fn at_or_below_mask_sse(window: &[f32; WINDOW], v: f32) -> u32 {
 /// [`at_or_below_mask`] by four eight-wide AVX-512 compares into mask
 /// registers (v >= entry, ordered, so a NaN on either side clears its bit
 /// as `<=` does), joined into one 32-bit mask: nine instructions where the
-/// SSE form takes twenty-four (loads, compares, three levels of packs).
+/// SSE form takes 25 (a broadcast, eight loads, eight compares, six packs,
+/// an insert and a byte mask; counted in the sampler's AVX2 copy).
 ///
 /// Written as inline assembly so that it inlines into code compiled for any
 /// target features (the sampler's AVX2 copy, the baseline): an intrinsic
