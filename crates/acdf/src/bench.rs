@@ -24,6 +24,9 @@
 //!   batch); `sample_batch` for one outgoing direction; and the densities
 //!   of the drawn pairs by `pdf` once per pair, by `pdf_each`, and by
 //!   `pdf_batch` for the one direction.
+//! - **Clock**: the core clock read just before and just after the BRDF
+//!   samplers (a chain of dependent additions), by which the text output
+//!   turns their per-call rates into cycles per call.
 //! - **Builds**: the material tabulated into a MERL-layout table
 //!   ([`MerlTable::tabulate`], not timed), then every slice of the uniform
 //!   and the adaptive sampler built from that table with `build_all` (all
@@ -92,6 +95,15 @@ pub struct BenchReport {
     /// `/proc/loadavg`), `null` where unavailable: a loaded machine gives
     /// lower rates.
     pub load_average: Option<f64>,
+    /// The core clock in GHz just before the BRDF samplers are timed
+    /// (`clock_ghz_start`) and just after (`clock_ghz_end`), estimated from
+    /// a chain of dependent integer additions ([`clock_ghz`]); `null` off
+    /// x86-64. One call of `sample` is a chain of dependent steps of a
+    /// nearly fixed number of cycles, so its rate follows the clock, which
+    /// on the 2-core Zen 5 machine read from 3.28 to 3.94 GHz on different
+    /// days; the table printed beside the JSON gives each call in cycles.
+    pub clock_ghz_start: Option<f64>,
+    pub clock_ghz_end: Option<f64>,
     /// The processor the figures were measured on: its model name (Linux
     /// `/proc/cpuinfo`; `unknown` elsewhere), then its family and model
     /// numbers and the vector extensions the batch paths can use, e.g.
@@ -182,6 +194,38 @@ fn load_average() -> Option<f64> {
         .next()?
         .parse()
         .ok()
+}
+
+/// The core clock in GHz: additions per second in a chain where each
+/// waits for the one before, which takes one cycle per addition on x86-64
+/// cores; best of five runs of 10^8 (about 30 ms each at 3.5 GHz).
+#[cfg(target_arch = "x86_64")]
+pub fn clock_ghz() -> Option<f64> {
+    const ADDITIONS: u64 = 100_000_000;
+    let seconds = best_seconds(5, || {
+        let mut x = 0u64;
+        for _ in 0..ADDITIONS / 4 {
+            // SAFETY: four additions to one register; no memory, no stack.
+            unsafe {
+                std::arch::asm!(
+                    "add {x}, 1",
+                    "add {x}, 1",
+                    "add {x}, 1",
+                    "add {x}, 1",
+                    x = inout(reg) x,
+                    options(nomem, nostack),
+                );
+            }
+        }
+        std::hint::black_box(x);
+    });
+    Some(ADDITIONS as f64 / seconds / 1e9)
+}
+
+/// The core clock is not estimated off x86-64.
+#[cfg(not(target_arch = "x86_64"))]
+pub fn clock_ghz() -> Option<f64> {
+    None
 }
 
 /// The `cpu` field of [`BenchReport`].
@@ -402,6 +446,7 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     uniform.build_all()?;
     let adaptive = TabulatedBrdfSampler::new(brdf.clone(), res, adaptive_builder.clone())?;
     adaptive.build_all()?;
+    let clock_ghz_start = clock_ghz();
     let mut samplers = vec![
         bench_sampler(&uniform, &u, repeats),
         bench_sampler(&adaptive, &u, repeats),
@@ -418,6 +463,7 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     chi2.build_all()?;
     samplers.push(bench_sampler(&chi2, &u, repeats));
     drop(chi2);
+    let clock_ghz_end = clock_ghz();
 
     // (d): the full 4D builds from a MERL-layout table.
     let merl: Arc<dyn Brdf> = Arc::new(MerlTable::tabulate(&*brdf));
@@ -445,6 +491,8 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
         repeats,
         threads: rayon::current_num_threads(),
         load_average,
+        clock_ghz_start,
+        clock_ghz_end,
         cpu: cpu_description(),
         distributions,
         samplers,
@@ -496,6 +544,23 @@ pub fn format_bench(report: &BenchReport) -> String {
             b.pdf_batch_per_second / 1e6,
             b.storage_bytes
         ));
+    }
+    if let (Some(start), Some(end)) = (report.clock_ghz_start, report.clock_ghz_end) {
+        // Cycles per call at the mean of the two readings: a figure that
+        // does not move with the clock, as the rates above do.
+        let hz = (start + end) / 2.0 * 1e9;
+        s.push_str(&format!(
+            "clock {start:.2} GHz before the samplers, {end:.2} after; cycles per call:\n"
+        ));
+        for b in &report.samplers {
+            s.push_str(&format!(
+                "{:<14} {:>12} {:>9.0} {:>9.0}   (sample, pdf)\n",
+                b.name,
+                b.resolution,
+                hz / b.sample_per_second,
+                hz / b.pdf_per_second
+            ));
+        }
     }
     s.push_str(&format!(
         "{:<24} {:>12} {:>12}\n",

@@ -715,6 +715,22 @@ fn bench_prints_a_table_and_writes_documented_json() {
         "{cpu}"
     );
     let positive = |x: &serde_json::Value| x.as_f64().is_some_and(|x| x.is_finite() && x > 0.0);
+    // The clock readings are those of a real core (a loop the compiler had
+    // shortened would give hundreds of GHz), and the table turns the
+    // per-call rates into cycles with them.
+    for field in ["clock_ghz_start", "clock_ghz_end"] {
+        if cfg!(target_arch = "x86_64") {
+            let ghz = v[field].as_f64().unwrap_or(f64::NAN);
+            assert!((0.3..10.0).contains(&ghz), "{field}: {ghz}");
+        } else {
+            assert!(v[field].is_null(), "{field}: {}", v[field]);
+        }
+    }
+    assert_eq!(
+        out.contains("cycles per call"),
+        cfg!(target_arch = "x86_64"),
+        "{out}"
+    );
     let distributions = v["distributions"].as_array().unwrap();
     assert_eq!(distributions.len(), 2);
     for d in distributions {
