@@ -715,9 +715,9 @@ fn bench_prints_a_table_and_writes_documented_json() {
         "{cpu}"
     );
     let positive = |x: &serde_json::Value| x.as_f64().is_some_and(|x| x.is_finite() && x > 0.0);
-    // The clock readings are those of a real core (a loop the compiler had
-    // shortened would give hundreds of GHz), and the table turns the
-    // per-call rates into cycles with them.
+    // The clock readings are those of a real core (the loop with its chain
+    // of additions taken out read 11.8 GHz, removed altogether it would
+    // read millions), and the table turns the per-call rates into cycles.
     for field in ["clock_ghz_start", "clock_ghz_end"] {
         if cfg!(target_arch = "x86_64") {
             let ghz = v[field].as_f64().unwrap_or(f64::NAN);
