@@ -13,7 +13,7 @@ use acdf_conformance::{
     SamplerConfig,
 };
 use acdf_core::Brdf;
-use acdf_uniform::{Resolution, TabulatedBrdfSampler};
+use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
 use std::sync::Arc;
 
 fn builtins() -> Vec<Arc<dyn Brdf>> {

@@ -1,4 +1,4 @@
-//! Saving and loading built samplers (`acdf_uniform::persist`): for every
+//! Saving and loading built samplers (`acdf_tabulated::persist`): for every
 //! sampler family that can be saved, a round trip is bit-identical, the file
 //! is the tables plus a small header, and every kind of corruption gives a
 //! typed error without a panic.
@@ -6,12 +6,11 @@
 use acdf_adaptive::{AdaptiveBrdfSampler, AdaptiveBuilder};
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{BxdfSampler, Vec2};
-use acdf_uniform::persist::{
+use acdf_tabulated::persist::{
     peek_kind, Persist, PersistBuilder, PersistError, ENVELOPE_BYTES, FORMAT_VERSION,
 };
-use acdf_uniform::{
-    PiecewiseConstantBuilder, Resolution, TabulatedBrdfSampler, UniformBrdfSampler,
-};
+use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
+use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 

@@ -11,9 +11,9 @@ use acdf_conformance::{
     distribution_1d_battery, distribution_2d_battery, sampler_battery, SamplerConfig,
 };
 use acdf_core::Brdf;
+use acdf_tabulated::Resolution;
 use acdf_uniform::{
-    PiecewiseConstant1D, PiecewiseConstant2D, PiecewiseConstantBuilder, Resolution,
-    UniformBrdfSampler,
+    PiecewiseConstant1D, PiecewiseConstant2D, PiecewiseConstantBuilder, UniformBrdfSampler,
 };
 use std::sync::Arc;
 

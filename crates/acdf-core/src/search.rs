@@ -249,6 +249,76 @@ pub fn count_short_or_search(data: &[f32], start: usize, len: usize, v: f32) -> 
     }
 }
 
+/// The number of entries of the non-decreasing `list` that are `<= v`
+/// ([`count_short_or_search`] over the whole list).
+#[inline(always)]
+pub fn count_sorted(list: &[f32], v: f32) -> usize {
+    count_short_or_search(list, 0, list.len(), v)
+}
+
+/// The width of a short window: one eight-wide compare.
+pub const SHORT_WINDOW: usize = 8;
+
+/// The longest row counted by [`count_linear`].
+pub const LINEAR_ROW: usize = 64;
+
+/// The [`SHORT_WINDOW`] entries of `list` from `start` (which must leave
+/// room for them).
+#[inline(always)]
+pub fn short_window(list: &[f32], start: usize) -> &[f32; SHORT_WINDOW] {
+    list[start..start + SHORT_WINDOW]
+        .try_into()
+        .expect("the caller leaves room for a window")
+}
+
+/// The number of entries of a non-decreasing window of eight that are
+/// `<= v`, for v not NaN.
+///
+/// On x86-64 this is two four-wide compares (SSE2, part of the baseline)
+/// whose sign bits form a mask; the window is sorted, so the mask is a run
+/// of ones from bit 0 and the count is the position of its first zero.
+/// Elsewhere the entries are compared one by one.
+#[inline(always)]
+pub fn count_short_window(w: &[f32; SHORT_WINDOW], v: f32) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_set1_ps};
+        // SAFETY: SSE2 is part of the x86-64 baseline, and both loads read
+        // four floats inside the eight of `w`.
+        let mask = unsafe {
+            let vv = _mm_set1_ps(v);
+            let lo = _mm_cmple_ps(_mm_loadu_ps(w.as_ptr()), vv);
+            let hi = _mm_cmple_ps(_mm_loadu_ps(w.as_ptr().add(4)), vv);
+            (_mm_movemask_ps(lo) | (_mm_movemask_ps(hi) << 4)) as u32
+        };
+        (!mask).trailing_zeros() as usize
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        w.iter().map(|&c| (c <= v) as usize).sum()
+    }
+}
+
+/// The number of entries of a non-decreasing `row` that are `<= v`, for a
+/// row whose length is a multiple of [`SHORT_WINDOW`], at most
+/// [`LINEAR_ROW`].
+///
+/// The last entry of each block of eight is compared first: the blocks
+/// whose last entry is `<= v` are wholly counted, and only the next block
+/// is counted entry by entry ([`count_short_window`]). Both steps are fixed
+/// sequences of compares with no data-dependent branch, so a row of 32
+/// costs three scalar and two four-wide compares.
+#[inline(always)]
+pub fn count_linear(row: &[f32], v: f32) -> usize {
+    let blocks = row.len() / SHORT_WINDOW;
+    let mut full = 0;
+    for b in 0..blocks - 1 {
+        full += (row[b * SHORT_WINDOW + SHORT_WINDOW - 1] <= v) as usize;
+    }
+    let start = full * SHORT_WINDOW;
+    start + count_short_window(short_window(row, start), v)
+}
+
 /// Ask the CPU to bring `data[start..start + len]` into the first-level
 /// cache without waiting for it: its first, middle and last cache lines
 /// (all of a list of up to 48 entries). A hint with no effect on any

@@ -39,10 +39,8 @@ use acdf_adaptive::{AdaptiveBuilder, AdaptiveCdf2D};
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{Brdf, BxdfSampler, Distribution2D, Sample2D, Vec2, Vec3};
 use acdf_materials::merl::MerlTable;
-use acdf_uniform::{
-    tabulate_slice, PiecewiseConstant2D, PiecewiseConstantBuilder, Resolution, SliceBuilder,
-    TabulatedBrdfSampler, UniformBrdfSampler,
-};
+use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
+use acdf_uniform::{PiecewiseConstant2D, PiecewiseConstantBuilder, UniformBrdfSampler};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde::Serialize;

@@ -67,7 +67,7 @@ pub enum Error {
     #[error("sampler file {}: {source}", path.display())]
     SamplerFile {
         path: PathBuf,
-        source: acdf_uniform::persist::PersistError,
+        source: acdf_tabulated::persist::PersistError,
     },
 
     /// A sampler or distribution rejected its parameters.

@@ -16,6 +16,7 @@
 pub use acdf_core as core;
 pub use acdf_cosine as cosine;
 pub use acdf_materials as materials;
+pub use acdf_tabulated as tabulated;
 pub use acdf_uniform as uniform;
 
 pub mod efficiency;

@@ -24,7 +24,7 @@ use acdf::spec::{
 };
 use acdf::sweep::{default_tolerance, plot_sweep, run_sweep, write_csv, TOLERANCE_FACTORS};
 use acdf_core::{BxdfSampler, Vec2, Vec3};
-use acdf_uniform::Resolution;
+use acdf_tabulated::Resolution;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{Rng, SeedableRng};

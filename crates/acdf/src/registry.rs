@@ -18,10 +18,9 @@ use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 use acdf_core::{BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
 use acdf_rgl::RglSampler;
-use acdf_uniform::persist;
-use acdf_uniform::{
-    PiecewiseConstantBuilder, Resolution, TabulatedBrdfSampler, UniformBrdfSampler,
-};
+use acdf_tabulated::persist;
+use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
+use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
 
 use crate::error::{Error, Result};
 use crate::material::Material;
@@ -241,7 +240,7 @@ pub fn report_samplers(material: &Material) -> Vec<SamplerSpec> {
 }
 
 /// Build every table of a tabulated sampler (uniform or adaptive) and save
-/// it to `path` in the sampler file format (`acdf_uniform::persist`), so a
+/// it to `path` in the sampler file format (`acdf_tabulated::persist`), so a
 /// renderer can load it without rebuilding. Samplers without tables have
 /// nothing to save and give [`Error::Incompatible`].
 pub fn save_sampler(sampler: &AnySampler, path: &Path) -> Result<()> {

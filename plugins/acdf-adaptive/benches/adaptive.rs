@@ -3,14 +3,14 @@
 //! cell (256 θ_h rows × 32 φ_h columns), simplified by Douglas-Peucker at
 //! its default tolerance (the default `adaptive` sampler). The 2D
 //! distribution is timed with `sample` one draw at a time, `sample_batch`,
-//! `pdf`, `same_segment_around`, `sample_and_same_segment` and its build;
+//! `pdf`, `same_cell_around`, `sample_and_same_cell` and its build;
 //! the 1D distribution (the slice's row sums, the marginal's table) with
-//! `sample`, `sample_batch` and `pdf`. The uniform `PiecewiseConstant2D` of
-//! the same slice is timed alongside for comparison.
+//! `sample`, `sample_batch` and `pdf`. `acdf bench` times the uniform
+//! table of the same slice beside it.
 
 use acdf_adaptive::{AdaptiveBuilder, AdaptiveCdf1D, AdaptiveCdf2D, DouglasPeucker, Simplifier};
 use acdf_core::{Distribution1D, Distribution2D, Sample1D, Sample2D, Vec2};
-use acdf_uniform::{tabulate_slice, PiecewiseConstant2D, Resolution, SliceBuilder};
+use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, SliceDistribution};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -37,7 +37,6 @@ fn distribution_2d(c: &mut Criterion) {
     let (values, nx, ny) = nickel_slice();
     let builder = AdaptiveBuilder::by_name("dp", None).unwrap();
     let d: AdaptiveCdf2D = builder.build(&values, nx, ny).unwrap();
-    let uniform = PiecewiseConstant2D::new(&values, nx, ny).unwrap();
     let u = uniform_pairs(1);
     let points: Vec<Vec2> = u.iter().map(|&u| d.sample(u).p).collect();
     let mut group = c.benchmark_group("adaptive_2d_nickel_256x32");
@@ -74,38 +73,22 @@ fn distribution_2d(c: &mut Criterion) {
             black_box(&out);
         })
     });
-    group.bench_function("same_segment_around", |b| {
+    group.bench_function("same_cell_around", |b| {
         let margin = Vec2::splat(1e-4);
         b.iter(|| {
             let mut inside = 0usize;
             for &p in black_box(&points) {
-                inside += d.same_segment_around(p, margin) as usize;
+                inside += d.same_cell_around(p, margin) as usize;
             }
             black_box(inside)
         })
     });
-    group.bench_function("sample_and_same_segment", |b| {
+    group.bench_function("sample_and_same_cell", |b| {
         let margin = Vec2::splat(1e-4);
         let mut out = vec![(Sample2D::default(), false); BATCH];
         b.iter(|| {
             for (o, &u) in out.iter_mut().zip(black_box(&u)) {
-                *o = d.sample_and_same_segment(u, margin);
-            }
-            black_box(&out);
-        })
-    });
-    group.bench_function("uniform sample_batch", |b| {
-        let mut out = vec![Sample2D::default(); BATCH];
-        b.iter(|| {
-            uniform.sample_batch(black_box(&u), &mut out);
-            black_box(&out);
-        })
-    });
-    group.bench_function("uniform sample", |b| {
-        let mut out = vec![Sample2D::default(); BATCH];
-        b.iter(|| {
-            for (o, &u) in out.iter_mut().zip(black_box(&u)) {
-                *o = uniform.sample(u);
+                *o = d.sample_and_same_cell(u, margin);
             }
             black_box(&out);
         })

@@ -11,6 +11,7 @@ use acdf_core::{
 
 #[cfg(target_arch = "x86_64")]
 mod gather;
+use acdf_tabulated::SliceDistribution;
 
 /// Tables longer than this cannot give distinct f32 vertex positions k / n.
 const MAX_TABLE_LEN: usize = 1 << 24;
@@ -602,79 +603,6 @@ impl AdaptiveCdf2D {
         }
     }
 
-    /// Whether the box [p.x ± margin.x] × [p.y ± margin.y] lies inside one
-    /// marginal segment and, within it, one conditional segment, so that
-    /// the density is the same all over it (false for a box reaching outside
-    /// [0, 1)^2). Cheaper than a density lookup at its four corners: a
-    /// tabulated BRDF sampler can take a draw's density from the drawn cell
-    /// when this holds (`acdf_uniform::SliceBuilder::same_cell_around`).
-    #[inline(always)]
-    pub fn same_segment_around(&self, p: Vec2, margin: Vec2) -> bool {
-        #[inline(always)]
-        fn inside(curve: Curve<'_>, x: f32, m: f32) -> Option<usize> {
-            if !(x - m >= 0.0 && x + m < 1.0) {
-                return None;
-            }
-            if curve.is_uniform() {
-                return Some(0);
-            }
-            let i = curve.segment_of(x);
-            let xs = curve.xs();
-            (x - m >= xs[i] && x + m < xs[i + 1]).then_some(i)
-        }
-        match inside(self.marginal_curve(), p.y, margin.y) {
-            Some(j) => inside(self.conditional(j), p.x, margin.x).is_some(),
-            None => false,
-        }
-    }
-
-    /// [`sample`](Distribution2D::sample) and
-    /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
-    /// at once. A draw lies in the marginal and conditional segments it was
-    /// drawn from, so the box test reads their ends instead of searching for
-    /// them again; the sample and the answer are those of the two calls.
-    #[inline(always)]
-    pub fn sample_and_same_segment(&self, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
-        self.prefetch_likely_conditional(u.y);
-        let (sy, j, ys) = self.marginal_curve().sample(u.y);
-        let (sx, _, xs) = self.conditional(j).sample(u.x);
-        // Non-short-circuit `&`: four compares, no branches.
-        let inside = |x: f32, m: f32, s: Segment| {
-            (x - m >= 0.0) & (x + m < 1.0) & (x - m >= s.x0) & (x + m < s.x1)
-        };
-        let same = inside(sy.x, margin.y, ys) & inside(sx.x, margin.x, xs);
-        let sample = Sample2D {
-            p: Vec2::new(sx.x, sy.x),
-            pdf: sy.pdf * sx.pdf,
-        };
-        (sample, same)
-    }
-
-    /// `sample_batch`, and for every draw
-    /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
-    /// into `same`, from the segments each draw came from (as
-    /// [`sample_and_same_segment`](Self::sample_and_same_segment) does for
-    /// one draw). Entries beyond the shortest of the three lengths are left
-    /// alone.
-    pub fn sample_batch_and_same_segment(
-        &self,
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        let len = u.len().min(out.len()).min(same.len());
-        let (u, out, same) = (&u[..len], &mut out[..len], &mut same[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // distribution fits the lanes.
-            unsafe { self.sample_batch_gather::<true>(u, out, margin, same) };
-            return;
-        }
-        self.sample_batch_lanes::<true>(u, out, margin, same);
-    }
-
     /// The same samples as [`sample`](Distribution2D::sample), [`LANES`]
     /// draws at a time in stages (marginal segments, marginal samples,
     /// conditional segments, conditional samples), so that the core sees
@@ -696,7 +624,7 @@ impl AdaptiveCdf2D {
         let marginal = self.marginal_curve();
         let mut u_chunks = u.chunks_exact(LANES);
         let mut out_chunks = out.chunks_exact_mut(LANES);
-        // Non-short-circuit `&`: the box test of `sample_and_same_segment`.
+        // Non-short-circuit `&`: the box test of `sample_and_same_cell`.
         let inside = |x: f32, m: f32, s: &Segment| {
             (x - m >= 0.0) & (x + m < 1.0) & (x - m >= s.x0) & (x + m < s.x1)
         };
@@ -748,7 +676,7 @@ impl AdaptiveCdf2D {
             .enumerate()
         {
             if SAME {
-                let (sample, inside) = self.sample_and_same_segment(u, margin);
+                let (sample, inside) = self.sample_and_same_cell(u, margin);
                 *o = sample;
                 same[tail + k] = inside;
             } else {
@@ -759,36 +687,8 @@ impl AdaptiveCdf2D {
 }
 
 impl AdaptiveCdf2D {
-    /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
-    /// shading points) and answer, into `same`, the box test
-    /// [`same_segment_around`](Self::same_segment_around)`(sample.p, margin)`
-    /// of each draw in its own distribution: exactly
-    /// `dists[k].sample_and_same_segment(u[k], margin)`. Where the CPU has
-    /// AVX2 the draws go 32 at a time in SIMD lanes, each lane
-    /// reading its own distribution (`dist/gather.rs`); elsewhere eight (`LANES`)
-    /// at a time in scalar stages (marginal segments, conditional segments,
-    /// then positions), so that the searches of different slices overlap.
-    /// Entries beyond the shortest of the four lengths are left alone.
-    pub fn sample_each_and_same_segment(
-        dists: &[&AdaptiveCdf2D],
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        let len = dists.len().min(u.len()).min(out.len()).min(same.len());
-        let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather(dists, u, margin, out, same) };
-            return;
-        }
-        Self::sample_each_lanes(dists, u, margin, out, same);
-    }
-
     /// The stages of
-    /// [`sample_each_and_same_segment`](Self::sample_each_and_same_segment),
+    /// [`sample_each_and_same_cell`](Self::sample_each_and_same_cell),
     /// for slices of equal length.
     #[inline(always)]
     fn sample_each_lanes(
@@ -853,31 +753,12 @@ impl AdaptiveCdf2D {
             .zip(out_chunks.into_remainder())
             .zip(same_chunks.into_remainder())
         {
-            (*o, *s) = d.sample_and_same_segment(u, margin);
+            (*o, *s) = d.sample_and_same_cell(u, margin);
         }
     }
 }
 
 impl AdaptiveCdf2D {
-    /// `dists[k].pdf(p[k])` for every k (the slices of a batch of shading
-    /// points), bit for bit, eight (`LANES`) at a time in stages (marginal
-    /// segments, conditional segments, densities) so that the searches of
-    /// different slices overlap; where the CPU has AVX2, 32 at a time
-    /// in SIMD lanes, each lane reading its own distribution
-    /// (`dist/gather.rs`). Entries beyond the shortest of the three lengths
-    /// are left alone.
-    pub fn pdf_each(dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
-        let len = dists.len().min(p.len()).min(out.len());
-        let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::pdf_each_gather(dists, p, out) };
-            return;
-        }
-        Self::pdf_each_lanes(dists, p, out);
-    }
-
     /// The scalar stages of [`pdf_each`](Self::pdf_each), for slices of
     /// equal length.
     fn pdf_each_lanes(dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
@@ -1016,6 +897,131 @@ impl Distribution2D for AdaptiveCdf2D {
             + std::mem::size_of_val(&*self.offsets)
             + std::mem::size_of_val(&*self.conditionals)
             + self.marginal_guide.bytes()
+    }
+}
+
+/// The tabulated sampler's questions answered from the segments: a box
+/// lies in one density cell when it lies inside one marginal segment and,
+/// within it, one conditional segment.
+impl SliceDistribution for AdaptiveCdf2D {
+    /// Whether the box [p.x ± margin.x] × [p.y ± margin.y] lies inside one
+    /// marginal segment and, within it, one conditional segment, so that
+    /// the density is the same all over it (false for a box reaching outside
+    /// [0, 1)^2). Cheaper than a density lookup at its four corners: the
+    /// tabulated BRDF sampler takes a draw's density from the drawn cell
+    /// when this holds.
+    #[inline(always)]
+    fn same_cell_around(&self, p: Vec2, margin: Vec2) -> bool {
+        #[inline(always)]
+        fn inside(curve: Curve<'_>, x: f32, m: f32) -> Option<usize> {
+            if !(x - m >= 0.0 && x + m < 1.0) {
+                return None;
+            }
+            if curve.is_uniform() {
+                return Some(0);
+            }
+            let i = curve.segment_of(x);
+            let xs = curve.xs();
+            (x - m >= xs[i] && x + m < xs[i + 1]).then_some(i)
+        }
+        match inside(self.marginal_curve(), p.y, margin.y) {
+            Some(j) => inside(self.conditional(j), p.x, margin.x).is_some(),
+            None => false,
+        }
+    }
+
+    /// [`sample`](Distribution2D::sample) and
+    /// [`same_cell_around`](Self::same_cell_around)`(sample.p, margin)`
+    /// at once. A draw lies in the marginal and conditional segments it was
+    /// drawn from, so the box test reads their ends instead of searching for
+    /// them again; the sample and the answer are those of the two calls.
+    #[inline(always)]
+    fn sample_and_same_cell(&self, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
+        self.prefetch_likely_conditional(u.y);
+        let (sy, j, ys) = self.marginal_curve().sample(u.y);
+        let (sx, _, xs) = self.conditional(j).sample(u.x);
+        // Non-short-circuit `&`: four compares, no branches.
+        let inside = |x: f32, m: f32, s: Segment| {
+            (x - m >= 0.0) & (x + m < 1.0) & (x - m >= s.x0) & (x + m < s.x1)
+        };
+        let same = inside(sy.x, margin.y, ys) & inside(sx.x, margin.x, xs);
+        let sample = Sample2D {
+            p: Vec2::new(sx.x, sy.x),
+            pdf: sy.pdf * sx.pdf,
+        };
+        (sample, same)
+    }
+
+    /// `sample_batch`, and for every draw
+    /// [`same_cell_around`](Self::same_cell_around)`(sample.p, margin)`
+    /// into `same`, from the segments each draw came from (as
+    /// [`sample_and_same_cell`](Self::sample_and_same_cell) does for
+    /// one draw). Entries beyond the shortest of the three lengths are left
+    /// alone.
+    fn sample_batch_and_same_cell(
+        &self,
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        let len = u.len().min(out.len()).min(same.len());
+        let (u, out, same) = (&u[..len], &mut out[..len], &mut same[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
+            // SAFETY: the CPU has just been found to support AVX2, and the
+            // distribution fits the lanes.
+            unsafe { self.sample_batch_gather::<true>(u, out, margin, same) };
+            return;
+        }
+        self.sample_batch_lanes::<true>(u, out, margin, same);
+    }
+
+    /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
+    /// shading points) and answer, into `same`, the box test
+    /// [`same_cell_around`](Self::same_cell_around)`(sample.p, margin)`
+    /// of each draw in its own distribution: exactly
+    /// `dists[k].sample_and_same_cell(u[k], margin)`. Where the CPU has
+    /// AVX2 the draws go 32 at a time in SIMD lanes, each lane
+    /// reading its own distribution (`dist/gather.rs`); elsewhere eight (`LANES`)
+    /// at a time in scalar stages (marginal segments, conditional segments,
+    /// then positions), so that the searches of different slices overlap.
+    /// Entries beyond the shortest of the four lengths are left alone.
+    fn sample_each_and_same_cell(
+        dists: &[&Self],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        let len = dists.len().min(u.len()).min(out.len()).min(same.len());
+        let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { Self::sample_each_gather(dists, u, margin, out, same) };
+            return;
+        }
+        Self::sample_each_lanes(dists, u, margin, out, same);
+    }
+
+    /// `dists[k].pdf(p[k])` for every k (the slices of a batch of shading
+    /// points), bit for bit, eight (`LANES`) at a time in stages (marginal
+    /// segments, conditional segments, densities) so that the searches of
+    /// different slices overlap; where the CPU has AVX2, 32 at a time
+    /// in SIMD lanes, each lane reading its own distribution
+    /// (`dist/gather.rs`). Entries beyond the shortest of the three lengths
+    /// are left alone.
+    fn pdf_each(dists: &[&Self], p: &[Vec2], out: &mut [f32]) {
+        let len = dists.len().min(p.len()).min(out.len());
+        let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has just been found to support AVX2.
+            unsafe { Self::pdf_each_gather(dists, p, out) };
+            return;
+        }
+        Self::pdf_each_lanes(dists, p, out);
     }
 }
 
@@ -1183,8 +1189,8 @@ mod fast_sampling_tests {
                 for (s, &u) in out[..1000].iter().zip(&u) {
                     for m in [1e-5f32, 1e-3, 0.05] {
                         let margin = Vec2::splat(m);
-                        let same = d.same_segment_around(s.p, margin);
-                        assert_eq!(d.sample_and_same_segment(u, margin), (*s, same), "{u}");
+                        let same = d.same_cell_around(s.p, margin);
+                        assert_eq!(d.sample_and_same_cell(u, margin), (*s, same), "{u}");
                         if same {
                             inside += 1;
                             for c in [
@@ -1206,14 +1212,14 @@ mod fast_sampling_tests {
                     let n = 1003;
                     let mut batch = vec![Sample2D::default(); n];
                     let mut same = vec![false; n];
-                    d.sample_batch_and_same_segment(&u[..n], margin, &mut batch, &mut same);
+                    d.sample_batch_and_same_cell(&u[..n], margin, &mut batch, &mut same);
                     let mut staged = (vec![Sample2D::default(); n], vec![false; n]);
                     d.sample_batch_lanes::<true>(&u[..n], &mut staged.0, margin, &mut staged.1);
                     assert_eq!(staged, (batch.clone(), same.clone()));
                     for k in 0..n {
                         assert_eq!(
                             (batch[k], same[k]),
-                            d.sample_and_same_segment(u[k], margin),
+                            d.sample_and_same_cell(u[k], margin),
                             "{}",
                             u[k]
                         );
@@ -1258,11 +1264,11 @@ mod fast_sampling_tests {
             let margin = Vec2::splat(m);
             let mut out = vec![Sample2D::default(); n];
             let mut same = vec![false; n];
-            AdaptiveCdf2D::sample_each_and_same_segment(&lanes, &u, margin, &mut out, &mut same);
+            AdaptiveCdf2D::sample_each_and_same_cell(&lanes, &u, margin, &mut out, &mut same);
             for k in 0..n {
                 assert_eq!(
                     (out[k], same[k]),
-                    lanes[k].sample_and_same_segment(u[k], margin),
+                    lanes[k].sample_and_same_cell(u[k], margin),
                     "lane {k}"
                 );
             }

@@ -34,7 +34,7 @@
 //! Each default is the largest tolerance tried whose efficiency stayed at or
 //! above about 0.9 on the built-in nickel, gray-plastic and
 //! blue-metallic-paint at the isotropic resolution 32x1x256x32
-//! (`cargo run -p acdf-adaptive --release --example compression --
+//! (`cargo run -p acdf --release --example compression --
 //! --resolution 32x1x256x32 --cosine-mix 0.05 --simplifiers NAME
 //! --tolerances LIST`):
 //!

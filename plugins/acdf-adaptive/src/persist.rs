@@ -1,11 +1,11 @@
 //! Adaptive samplers in the sampler file format of
-//! [`acdf_uniform::persist`], where the layout is documented. This module
+//! [`acdf_tabulated::persist`], where the layout is documented. This module
 //! adds what is specific to them: the builder's parameters and the layout of
 //! an [`AdaptiveCdf2D`].
 
 use crate::simplify::{simplifier_by_name, validate_tolerance};
 use crate::{AdaptiveBuilder, AdaptiveCdf2D};
-use acdf_uniform::persist::{ByteReader, ByteWriter, Persist, PersistBuilder, PersistError};
+use acdf_tabulated::persist::{ByteReader, ByteWriter, Persist, PersistBuilder, PersistError};
 
 /// Stored as the simplifier name (`string`) and the tolerance (f64).
 impl Persist for AdaptiveBuilder {

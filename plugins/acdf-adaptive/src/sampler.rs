@@ -1,11 +1,11 @@
-//! The adaptive measured-BRDF sampler: the uniform plug-in's generic
+//! The adaptive measured-BRDF sampler: `acdf-tabulated`'s generic
 //! tabulated sampler, whose slices are [`AdaptiveCdf2D`]s built from the
 //! tabulated half-vector values.
 
 use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
 use crate::AdaptiveCdf2D;
-use acdf_core::{Brdf, Result, Sample2D, Vec2};
-use acdf_uniform::{Resolution, SliceBuilder, TabulatedBrdfSampler};
+use acdf_core::{Brdf, Result};
+use acdf_tabulated::{Resolution, SliceBuilder, TabulatedBrdfSampler};
 use std::sync::Arc;
 
 /// Builds an [`AdaptiveCdf2D`] per tabulated slice: the marginal over θ_h
@@ -58,68 +58,17 @@ impl SliceBuilder for AdaptiveBuilder {
             1,
         )
     }
-
-    /// The box lies inside one marginal and one conditional segment (see
-    /// [`AdaptiveCdf2D::same_segment_around`]), so the drawn segment's
-    /// density is the density at the recomputed point.
-    #[inline(always)]
-    fn same_cell_around(&self, dist: &AdaptiveCdf2D, p: Vec2, margin: Vec2) -> bool {
-        dist.same_segment_around(p, margin)
-    }
-
-    /// The box test from the segments the draw came from, without a second
-    /// search ([`AdaptiveCdf2D::sample_and_same_segment`]).
-    #[inline(always)]
-    fn sample_and_same_cell(
-        &self,
-        dist: &AdaptiveCdf2D,
-        u: Vec2,
-        margin: Vec2,
-    ) -> (Sample2D, bool) {
-        dist.sample_and_same_segment(u, margin)
-    }
-
-    /// The batch form of the same
-    /// ([`AdaptiveCdf2D::sample_batch_and_same_segment`]).
-    fn sample_batch_and_same_cell(
-        &self,
-        dist: &AdaptiveCdf2D,
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        dist.sample_batch_and_same_segment(u, margin, out, same);
-    }
-
-    /// The staged draws from many slices with their box tests
-    /// ([`AdaptiveCdf2D::sample_each_and_same_segment`]).
-    fn sample_each_and_same_cell(
-        &self,
-        dists: &[&AdaptiveCdf2D],
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        AdaptiveCdf2D::sample_each_and_same_segment(dists, u, margin, out, same);
-    }
-
-    /// The staged lookups in many slices ([`AdaptiveCdf2D::pdf_each`]).
-    fn pdf_each(&self, dists: &[&AdaptiveCdf2D], p: &[Vec2], out: &mut [f32]) {
-        AdaptiveCdf2D::pdf_each(dists, p, out);
-    }
 }
 
 /// The adaptive sampler: tabulation, cell lookup, cosine mixing and lazy
-/// building are the uniform plug-in's; only the slice distribution differs.
+/// building are `acdf-tabulated`'s; only the slice distribution differs.
 ///
 /// Defensive mixing matters more here than for the uniform sampler. A slice
 /// is tabulated at the centre of its outgoing cell; for other `wo` in the
 /// cell the BRDF's tails move, and a merged low-density segment can sit far
 /// below them. Measured relative variance of Y(f) cos θ_i / pdf (48 fixed
 /// `wo`, quadrature; isotropic resolution 32x1x256x32, default tolerances;
-/// `cargo run -p acdf-adaptive --release --example compression --
+/// `cargo run -p acdf --release --example compression --
 /// --resolution 32x1x256x32 --materials nickel,near-mirror --cosine-mix A`):
 ///
 /// | material | sampler | A = 0 | A = 0.05 |

@@ -7,8 +7,9 @@
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{BxdfSampler, Distribution1D, Distribution2D, Sample1D, Sample2D, Vec2, Vec3};
 use acdf_materials::merl::MerlTable;
+use acdf_tabulated::Resolution;
 use acdf_uniform::PiecewiseConstant1D;
-use acdf_uniform::{PiecewiseConstant2D, PiecewiseConstantBuilder, Resolution, UniformBrdfSampler};
+use acdf_uniform::{PiecewiseConstant2D, PiecewiseConstantBuilder, UniformBrdfSampler};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;

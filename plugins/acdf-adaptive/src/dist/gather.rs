@@ -1,6 +1,6 @@
 //! The AVX2 batch paths of the adaptive distributions:
 //! `AdaptiveCdf2D::sample_batch` (with or without the drawn-segment box
-//! test), `pdf_batch`, `sample_each_and_same_segment` and `pdf_each`, and
+//! test), `pdf_batch`, `sample_each_and_same_cell` and `pdf_each`, and
 //! `AdaptiveCdf1D::sample_batch`. The segment searches are those of
 //! [`acdf_core::search::lanes`], the positions and densities run in the same
 //! lanes.
@@ -28,6 +28,7 @@ use acdf_core::search::lanes::{
     Source, GROUPS, STAGE,
 };
 use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
+use acdf_tabulated::SliceDistribution;
 use std::arch::x86_64::*;
 
 /// The ends of the drawn segment of every lane: positions x_i, x_{i+1} and
@@ -162,7 +163,7 @@ impl ConditionalLanes {
     }
 }
 
-/// The box test of `sample_and_same_segment` in lanes: x ± m inside
+/// The box test of `sample_and_same_cell` in lanes: x ± m inside
 /// [0, 1) and inside the drawn segment [x_i, x_{i+1}); all ones where it is.
 #[inline(always)]
 unsafe fn inside_lanes(x: __m256, m: f32, s: SegmentLanes) -> __m256 {
@@ -458,7 +459,7 @@ impl AdaptiveCdf2D {
         }
         for k in stages * STAGE..len {
             if SAME {
-                (out[k], same[k]) = self.sample_and_same_segment(u[k], margin);
+                (out[k], same[k]) = self.sample_and_same_cell(u[k], margin);
             } else {
                 out[k] = self.sample_inline(u[k]);
             }
@@ -488,7 +489,7 @@ impl AdaptiveCdf2D {
         }
     }
 
-    /// [`sample_each_and_same_segment`](Self::sample_each_and_same_segment)
+    /// [`sample_each_and_same_cell`](Self::sample_each_and_same_cell)
     /// in AVX2 lanes, for slices of equal length: a stage whose
     /// distributions all fit the lanes is drawn as in
     /// [`sample_batch_gather`](Self::sample_batch_gather), each lane

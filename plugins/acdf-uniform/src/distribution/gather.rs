@@ -25,6 +25,7 @@ use acdf_core::search::lanes::{
     store_samples_1d, Bracket, PerLane, Shared, Source, GROUPS, STAGE,
 };
 use acdf_core::{Sample1D, Sample2D, Vec2, ONE_MINUS_EPSILON};
+use acdf_tabulated::SliceDistribution;
 use std::arch::x86_64::*;
 
 /// `f32::clamp(d, 0, 1 - ε/2)` in lanes, for d not NaN.

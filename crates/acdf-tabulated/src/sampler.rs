@@ -1,11 +1,11 @@
 //! The tabulated measured-BRDF sampler: one half-vector distribution per
 //! outgoing cell, built on first use.
 
-use crate::distribution::{count_at_or_below, count_linear, GUIDE_WINDOW, LINEAR_ROW};
 use crate::tabulate::{phi_o_cell, tabulate_slice, unit_cell, HalfMap};
-use crate::{PiecewiseConstant2D, Resolution};
+use crate::{Resolution, SliceBuilder, SliceDistribution};
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
 use acdf_core::geometry::{reflect_given_dot, sin_theta, wrap_angle};
+use acdf_core::search::{count_linear, count_sorted, LINEAR_ROW, SHORT_WINDOW};
 use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use acdf_core::{
     clamp_unit, is_valid_outgoing, Brdf, BxdfSample, BxdfSampler, Distribution2D, Error, Result,
@@ -14,161 +14,6 @@ use acdf_core::{
 use rayon::prelude::*;
 use std::f32::consts::TAU;
 use std::sync::{Arc, OnceLock};
-
-/// What a tabulated half-vector slice becomes: the distribution a
-/// [`TabulatedBrdfSampler`] draws (θ_h, φ_h) from.
-pub trait SliceBuilder: Send + Sync {
-    /// The distribution over the unit square (x → φ_h, y → θ_h).
-    type Dist: Distribution2D;
-
-    /// The name used as the sampler name, e.g. `uniform` or `adaptive:dp`.
-    fn name(&self) -> String;
-
-    /// Build the distribution of one slice. `values` is row-major,
-    /// `n_theta_h` rows (y, θ_h) of `n_phi_h` columns (x, φ_h); every value is
-    /// finite and non-negative, and the rows are spaced as
-    /// [`tabulate`](crate::tabulate) documents.
-    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist>;
-
-    /// Whether `dist.pdf` is the same at every point of the box
-    /// [p.x ± margin.x] × [p.y ± margin.y], given that each margin is under
-    /// half a tabulation cell.
-    ///
-    /// The sampler asks this to report a draw's density from the drawn cell
-    /// instead of recomputing it from wi (see
-    /// [`TabulatedBrdfSampler`]'s `finish_table_draw`); `false` is always
-    /// safe and only costs that recomputation. The default answers `false`:
-    /// a builder whose distribution can tell cheaply (in a few operations,
-    /// since the recomputation is what it replaces) overrides it.
-    fn same_cell_around(&self, dist: &Self::Dist, p: Vec2, margin: Vec2) -> bool {
-        let _ = (dist, p, margin);
-        false
-    }
-
-    /// `dist.sample(u)` and [`same_cell_around`](Self::same_cell_around)
-    /// of the sample, at once: a builder whose distribution can answer the
-    /// box test from the draw's own search overrides it. The default makes
-    /// the two calls.
-    #[inline(always)]
-    fn sample_and_same_cell(&self, dist: &Self::Dist, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
-        let s = dist.sample(u);
-        (s, self.same_cell_around(dist, s.p, margin))
-    }
-
-    /// `dist.sample_batch(u, out)` and, into `same`,
-    /// [`same_cell_around`](Self::same_cell_around) of every sample (the
-    /// three slices are equally long). The default makes the two passes; a
-    /// builder whose distribution can answer the box test from each draw's
-    /// own search overrides it.
-    fn sample_batch_and_same_cell(
-        &self,
-        dist: &Self::Dist,
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        dist.sample_batch(u, out);
-        for (same, s) in same.iter_mut().zip(out.iter()) {
-            *same = self.same_cell_around(dist, s.p, margin);
-        }
-    }
-
-    /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
-    /// shading points), exactly as `dists[k].sample(u[k])`. The default
-    /// draws one at a time; a builder whose distribution can overlap draws
-    /// from different slices overrides it.
-    fn sample_each(&self, dists: &[&Self::Dist], u: &[Vec2], out: &mut [Sample2D]) {
-        for ((o, d), &u) in out.iter_mut().zip(dists).zip(u) {
-            *o = d.sample(u);
-        }
-    }
-
-    /// `dists[k].pdf(p[k])` for every k (the slices of a batch of shading
-    /// points), bit for bit. The default looks up one at a time; a builder
-    /// whose distribution can overlap lookups in different slices overrides
-    /// it.
-    fn pdf_each(&self, dists: &[&Self::Dist], p: &[Vec2], out: &mut [f32]) {
-        for ((o, d), &p) in out.iter_mut().zip(dists).zip(p) {
-            *o = d.pdf(p);
-        }
-    }
-
-    /// [`sample_each`](Self::sample_each) and, into `same`,
-    /// [`same_cell_around`](Self::same_cell_around) of every sample in its
-    /// own slice (the four slices are equally long). The default makes the
-    /// two passes; a builder whose distribution can answer the box test from
-    /// each draw's own search overrides it.
-    fn sample_each_and_same_cell(
-        &self,
-        dists: &[&Self::Dist],
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        self.sample_each(dists, u, out);
-        for ((same, s), d) in same.iter_mut().zip(out.iter()).zip(dists) {
-            *same = self.same_cell_around(d, s.p, margin);
-        }
-    }
-}
-
-/// Builds [`PiecewiseConstant2D`] slices: the uniform tabulation itself.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct PiecewiseConstantBuilder;
-
-impl SliceBuilder for PiecewiseConstantBuilder {
-    type Dist = PiecewiseConstant2D;
-
-    fn name(&self) -> String {
-        "uniform".to_string()
-    }
-
-    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist> {
-        PiecewiseConstant2D::new(values, n_phi_h, n_theta_h)
-    }
-
-    /// The box lies in the cell of p
-    /// ([`PiecewiseConstant2D::same_cell_around`]).
-    #[inline(always)]
-    fn same_cell_around(&self, dist: &Self::Dist, p: Vec2, margin: Vec2) -> bool {
-        dist.same_cell_around(p, margin)
-    }
-
-    /// The box test from the draw's own cell
-    /// ([`PiecewiseConstant2D::sample_and_same_cell`]).
-    #[inline(always)]
-    fn sample_and_same_cell(&self, dist: &Self::Dist, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
-        dist.sample_and_same_cell(u, margin)
-    }
-
-    /// The staged draws of [`PiecewiseConstant2D::sample_each`].
-    fn sample_each(&self, dists: &[&Self::Dist], u: &[Vec2], out: &mut [Sample2D]) {
-        PiecewiseConstant2D::sample_each(dists, u, out);
-    }
-
-    /// The lookups of [`PiecewiseConstant2D::pdf_each`].
-    fn pdf_each(&self, dists: &[&Self::Dist], p: &[Vec2], out: &mut [f32]) {
-        PiecewiseConstant2D::pdf_each(dists, p, out);
-    }
-
-    /// The draws and box tests together
-    /// ([`PiecewiseConstant2D::sample_each_and_same_cell`]).
-    fn sample_each_and_same_cell(
-        &self,
-        dists: &[&Self::Dist],
-        u: &[Vec2],
-        margin: Vec2,
-        out: &mut [Sample2D],
-        same: &mut [bool],
-    ) {
-        PiecewiseConstant2D::sample_each_and_same_cell(dists, u, margin, out, same);
-    }
-}
-
-/// The uniformly tabulated sampler, named `uniform`.
-pub type UniformBrdfSampler = TabulatedBrdfSampler<PiecewiseConstantBuilder>;
 
 /// Importance sampling of a BRDF from tabulated half-vector distributions.
 ///
@@ -189,18 +34,18 @@ pub type UniformBrdfSampler = TabulatedBrdfSampler<PiecewiseConstantBuilder>;
 ///   first time a `wo` in its cell is seen ([`OnceLock`] per cell);
 ///   [`build_all`](Self::build_all) builds every slice in parallel.
 /// - **Failures.** A slice whose BRDF is zero for every wi falls back to the
-///   builder's all-zero behaviour (uniform over (x, v) for
-///   [`PiecewiseConstant2D`]), so it still samples the hemisphere. A slice
-///   whose build fails (impossible for the uniform builder, since tabulated
-///   values are sanitised) samples nothing: `sample` gives `None` and the
+///   distribution's all-zero behaviour (uniform over (x, v) for the
+///   uniform plug-in's piecewise-constant tables), so it still samples the
+///   hemisphere. A slice whose build fails (impossible for the uniform
+///   builder, since tabulated values are sanitised) samples nothing: `sample` gives `None` and the
 ///   table part of `pdf` is 0.
 /// - **Cosine mixing.** With [`with_cosine_mix`](Self::with_cosine_mix)(a),
 ///   the density is (1 - a) p_table + a cos θ_i / π in both `sample` and
 ///   `pdf`.
 /// - **Consistency.** `sample` reports `pdf(wo, wi)` of the returned wi to
 ///   5e-5 relative: from the drawn cell when the recomputed cell is
-///   certainly of the same density (and the builder can tell cheaply, see
-///   [`SliceBuilder::same_cell_around`]), otherwise by the same routine as
+///   certainly of the same density (and the distribution can tell cheaply,
+///   see [`SliceDistribution::same_cell_around`]), otherwise by the same routine as
 ///   `pdf`, which agrees exactly. A draw whose density comes out 0 or
 ///   non-finite (below the horizon, or a half vector whose recomputed cell
 ///   has zero density) is `None`.
@@ -420,9 +265,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         if a == 0.0 {
             // The distribution clamps u itself.
             let slice = slice?;
-            let (s, same_cell) = self
-                .builder
-                .sample_and_same_cell(slice.dist, u, CELL_MARGIN);
+            let (s, same_cell) = slice.dist.sample_and_same_cell(u, CELL_MARGIN);
             let draw = slice.draw(wo, s);
             return self.finish_draw_with(
                 &draw,
@@ -508,7 +351,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             // `sample_avx2`); the exact density, the rare path, stays out
             // of line.
             #[inline(always)]
-            || self.builder.same_cell_around(slice.dist, s.p, CELL_MARGIN),
+            || slice.dist.same_cell_around(s.p, CELL_MARGIN),
             || self.pdf_in(Some(slice), wo, draw.wi),
         )
     }
@@ -695,7 +538,7 @@ impl ThetaOCells {
                 -(std::f64::consts::FRAC_PI_2 * u * u).cos() as f32
             })
             .collect();
-        let padded = negative_cos_bounds.len().div_ceil(GUIDE_WINDOW).max(1) * GUIDE_WINDOW;
+        let padded = negative_cos_bounds.len().div_ceil(SHORT_WINDOW).max(1) * SHORT_WINDOW;
         negative_cos_bounds.resize(padded, f32::INFINITY);
         ThetaOCells {
             negative_cos_bounds,
@@ -726,7 +569,7 @@ impl ThetaOCells {
         } else if bounds.len() <= LINEAR_ROW {
             count_linear(bounds, -z)
         } else {
-            count_at_or_below(bounds, -z)
+            count_sorted(bounds, -z)
         }
     }
 }
@@ -1131,5 +974,38 @@ pub fn half_vector_cell(
 mod batch;
 
 #[cfg(test)]
-#[path = "sampler_tests.rs"]
-mod tests;
+mod tests {
+    use super::is_positive_finite;
+
+    /// The bit test of a usable cell density accepts exactly the positive
+    /// finite values: the extremes of both float classes, and not zero of
+    /// either sign, negatives, infinities or NaN.
+    #[test]
+    fn positive_finite_is_the_two_compares() {
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MIN_POSITIVE,
+            f32::MAX,
+            -f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+            f32::from_bits(0x7fc0_0001),
+            1.0,
+            -1.0,
+        ];
+        values.extend((0..64).map(|k| f32::from_bits(0x0123_4567u32.wrapping_mul(k * 2 + 1))));
+        for v in values {
+            assert_eq!(
+                is_positive_finite(v),
+                v > 0.0 && v < f32::INFINITY,
+                "{v:e} ({:#x})",
+                v.to_bits()
+            );
+        }
+    }
+}

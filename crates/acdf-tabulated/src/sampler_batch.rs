@@ -4,8 +4,8 @@
 //!
 //! A draw is a table search, then about a hundred operations of geometry
 //! (two sine/cosine pairs, a reflection, a Jacobian), then a check of the
-//! drawn cell. The searches of a chunk go through the builder
-//! (`SliceBuilder::sample_batch_and_same_cell`, or the slices' own
+//! drawn cell. The searches of a chunk go through the slice's distribution
+//! (`SliceDistribution::sample_batch_and_same_cell`, or its
 //! `sample_each` stages for a wavefront); the sines and cosines of the
 //! chunk's angles are computed many at a time (they read a table), and
 //! the rest of the geometry of the whole chunk runs as one loop over lanes
@@ -26,7 +26,7 @@ use super::{
     CELL_MARGIN,
 };
 use crate::tabulate::HalfMap;
-use crate::SliceBuilder;
+use crate::{SliceBuilder, SliceDistribution};
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{clamp_unit, is_valid_outgoing, BxdfSample, Distribution2D, Sample2D, Vec2, Vec3};
 
@@ -252,7 +252,7 @@ fn coordinate_lanes<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut Coordinate
 
 impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// Table draws for every u (no cosine lobe), a chunk at a time: the
-    /// searches and cell tests by the builder's
+    /// searches and cell tests by the distribution's
     /// `sample_batch_and_same_cell`, the geometry by [`draw_lanes`], then
     /// each draw's check.
     pub(super) fn sample_table_batch(
@@ -277,8 +277,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             for (t, &u) in table_u.iter_mut().zip(&uc[..n]) {
                 *t = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
             }
-            self.builder.sample_batch_and_same_cell(
-                slice.dist,
+            slice.dist.sample_batch_and_same_cell(
                 &table_u[..n],
                 CELL_MARGIN,
                 &mut drawn[..n],
@@ -498,9 +497,9 @@ impl<D> LaneFrames for OutgoingLanes<'_, D> {
 impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// `sample` of every (wo, u) pair without a cosine lobe, a chunk at a
     /// time: the outgoing cells in SIMD and the slices lane by lane, the
-    /// draws and their box tests by the builder's
+    /// draws and their box tests by the distribution's
     /// `sample_each_and_same_cell` (SIMD lanes with one table each, for
-    /// both built-in builders), the geometry and the exact densities in
+    /// both built-in distributions), the geometry and the exact densities in
     /// SIMD, then each draw's check.
     pub(super) fn sample_each_table(
         &self,
@@ -521,7 +520,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             let n = wc.len().min(uc.len()).min(oc.len());
             let lanes = OutgoingLanes::find(self, &wc[..n]);
             // The draws of the lanes that have a slice, from their slices
-            // together (the builder overlaps them where it can).
+            // together (the distribution overlaps them where it can).
             dists.clear();
             dists.extend(lanes.dist[..n].iter().flatten());
             let m = dists.len();
@@ -545,8 +544,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             } else {
                 (&lane_u[..m], &mut compact[..m], &mut compact_same[..m])
             };
-            self.builder
-                .sample_each_and_same_cell(&dists, lane_u, CELL_MARGIN, to, to_same);
+            B::Dist::sample_each_and_same_cell(&dists, lane_u, CELL_MARGIN, to, to_same);
             if !every {
                 for (k, &l) in lane_of[..m].iter().enumerate() {
                     drawn[l] = compact[k];
@@ -572,7 +570,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
 
     /// `pdf` of every (wo, wi) pair without a cosine lobe, a chunk at a
     /// time: the slices as in `sample_each_table`, the coordinates in SIMD,
-    /// the table lookups by the builder's `pdf_each`, then each lane's
+    /// the table lookups by the distribution's `pdf_each`, then each lane's
     /// mixing.
     pub(super) fn pdf_each_table(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
         let mut coordinates = CoordinateLanes::new();
@@ -586,7 +584,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             let lanes = OutgoingLanes::find(self, &wc[..n]);
             coordinate_lanes(&lanes, &ic[..n], &mut coordinates);
             // The densities of the lanes with a slice, from their slices
-            // together (the builder overlaps the lookups where it can).
+            // together (the distribution overlaps the lookups where it can).
             dists.clear();
             dists.extend(lanes.dist[..n].iter().flatten());
             let m = dists.len();
@@ -600,11 +598,10 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             let mut p_xv = [0.0f32; BATCH_CHUNK];
             if m == n {
                 // Every lane has a slice (the usual case): no compaction.
-                self.builder.pdf_each(&dists, &points[..n], &mut p_xv[..n]);
+                B::Dist::pdf_each(&dists, &points[..n], &mut p_xv[..n]);
             } else {
                 let mut compact_p = [0.0f32; BATCH_CHUNK];
-                self.builder
-                    .pdf_each(&dists, &points[..m], &mut compact_p[..m]);
+                B::Dist::pdf_each(&dists, &points[..m], &mut compact_p[..m]);
                 for (k, &l) in lane_of[..m].iter().enumerate() {
                     p_xv[l] = compact_p[k];
                 }

@@ -37,7 +37,7 @@
 //! constructor would validate it. Any byte string gives a [`PersistError`],
 //! never a panic.
 
-use crate::{PiecewiseConstantBuilder, Resolution, SliceBuilder, TabulatedBrdfSampler};
+use crate::{Resolution, SliceBuilder, TabulatedBrdfSampler};
 use acdf_core::{Brdf, Rgb, Vec3};
 use std::io::Write;
 use std::path::Path;
@@ -376,17 +376,6 @@ mod tests {
 /// `KIND` names the family (`uniform`, `adaptive`) in the file.
 pub trait PersistBuilder: SliceBuilder + Persist {
     const KIND: &'static str;
-}
-
-impl Persist for PiecewiseConstantBuilder {
-    fn encode(&self, _: &mut ByteWriter) {}
-    fn decode(_: &mut ByteReader<'_>) -> Result<Self, PersistError> {
-        Ok(PiecewiseConstantBuilder)
-    }
-}
-
-impl PersistBuilder for PiecewiseConstantBuilder {
-    const KIND: &'static str = "uniform";
 }
 
 /// The material of a sampler read from a file: its name and isotropy, as

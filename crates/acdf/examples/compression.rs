@@ -2,8 +2,8 @@
 //! uniform one.
 //!
 //! ```sh
-//! cargo run -p acdf-adaptive --release --example compression
-//! cargo run -p acdf-adaptive --release --example compression -- \
+//! cargo run -p acdf --release --example compression
+//! cargo run -p acdf --release --example compression -- \
 //!     --resolution 32x1x256x32 --materials nickel --simplifiers optimal,dp \
 //!     --tolerances 0.002,0.005,0.01,0.02 --cosine-mix 0.05
 //! ```
@@ -24,8 +24,9 @@ use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 use acdf_core::geometry::reflect;
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{Brdf, BxdfSampler, Distribution2D, Vec2, Vec3};
-use acdf_uniform::tabulate::{half_jacobian, incident_density, tabulate_slice, theta_h_of};
-use acdf_uniform::{PiecewiseConstantBuilder, Resolution, TabulatedBrdfSampler};
+use acdf_tabulated::tabulate::{half_jacobian, incident_density, tabulate_slice, theta_h_of};
+use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
+use acdf_uniform::PiecewiseConstantBuilder;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::sync::Arc;

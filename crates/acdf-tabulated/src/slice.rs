@@ -1,0 +1,114 @@
+//! What a slice is to the tabulated sampler: the two traits a sampler
+//! family implements to plug its distribution into
+//! [`TabulatedBrdfSampler`](crate::TabulatedBrdfSampler).
+//!
+//! - [`SliceDistribution`] is the distribution side: a [`Distribution2D`]
+//!   over the half-vector square, plus the operations the sampler's fast
+//!   paths ask of it (whether a drawn point's cell is certainly of one
+//!   density, and draws and lookups across many slices at once). Every
+//!   operation has a correct default, so a new distribution needs nothing
+//!   beyond `Distribution2D` to work; it overrides what it can answer
+//!   faster.
+//! - [`SliceBuilder`] is the construction side: the sampler's name and how a
+//!   tabulated slice becomes a distribution (for instance with which curve
+//!   simplifier and tolerance).
+
+use acdf_core::{Distribution2D, Result, Sample2D, Vec2};
+
+/// A distribution over the unit square (x → φ_h, y → θ_h) that a
+/// [`TabulatedBrdfSampler`](crate::TabulatedBrdfSampler) draws half vectors
+/// from.
+///
+/// The methods beyond [`Distribution2D`] are optional: each default is
+/// correct and only slower than what a distribution that knows its own
+/// layout can do. Overrides must return exactly what the defaults return
+/// (bit for bit), since the sampler's one-at-a-time and batch paths rely on
+/// giving identical results.
+pub trait SliceDistribution: Distribution2D + Send + Sync + Sized {
+    /// Whether `pdf` is the same at every point of the box
+    /// [p.x ± margin.x] × [p.y ± margin.y], given that each margin is under
+    /// half a tabulation cell.
+    ///
+    /// The sampler asks this to report a draw's density from the drawn cell
+    /// instead of recomputing it from wi; `false` is always safe and only
+    /// costs that recomputation. The default answers `false`: a
+    /// distribution that can tell in a few operations overrides it.
+    #[inline(always)]
+    fn same_cell_around(&self, p: Vec2, margin: Vec2) -> bool {
+        let _ = (p, margin);
+        false
+    }
+
+    /// [`sample`](Distribution2D::sample) and
+    /// [`same_cell_around`](Self::same_cell_around) of the sample, at once
+    /// (a distribution can answer the box test from the draw's own search).
+    #[inline(always)]
+    fn sample_and_same_cell(&self, u: Vec2, margin: Vec2) -> (Sample2D, bool) {
+        let s = self.sample(u);
+        (s, self.same_cell_around(s.p, margin))
+    }
+
+    /// [`sample_batch`](Distribution2D::sample_batch) and, into `same`,
+    /// [`same_cell_around`](Self::same_cell_around) of every sample (the
+    /// three slices are equally long).
+    fn sample_batch_and_same_cell(
+        &self,
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        self.sample_batch(u, out);
+        for (same, s) in same.iter_mut().zip(out.iter()) {
+            *same = self.same_cell_around(s.p, margin);
+        }
+    }
+
+    /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
+    /// shading points), exactly as `dists[k].sample(u[k])`. A distribution
+    /// that can overlap draws from different slices overrides it.
+    fn sample_each(dists: &[&Self], u: &[Vec2], out: &mut [Sample2D]) {
+        for ((o, d), &u) in out.iter_mut().zip(dists).zip(u) {
+            *o = d.sample(u);
+        }
+    }
+
+    /// `dists[k].pdf(p[k])` for every k, bit for bit.
+    fn pdf_each(dists: &[&Self], p: &[Vec2], out: &mut [f32]) {
+        for ((o, d), &p) in out.iter_mut().zip(dists).zip(p) {
+            *o = d.pdf(p);
+        }
+    }
+
+    /// [`sample_each`](Self::sample_each) and, into `same`,
+    /// [`same_cell_around`](Self::same_cell_around) of every sample in its
+    /// own slice (the four slices are equally long).
+    fn sample_each_and_same_cell(
+        dists: &[&Self],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+    ) {
+        Self::sample_each(dists, u, out);
+        for ((same, s), d) in same.iter_mut().zip(out.iter()).zip(dists) {
+            *same = d.same_cell_around(s.p, margin);
+        }
+    }
+}
+
+/// What a tabulated half-vector slice becomes: the construction side of a
+/// sampler family.
+pub trait SliceBuilder: Send + Sync {
+    /// The distribution a slice becomes.
+    type Dist: SliceDistribution;
+
+    /// The name used as the sampler name, e.g. `uniform` or `adaptive:dp`.
+    fn name(&self) -> String;
+
+    /// Build the distribution of one slice. `values` is row-major,
+    /// `n_theta_h` rows (y, θ_h) of `n_phi_h` columns (x, φ_h); every value is
+    /// finite and non-negative, and the rows are spaced as
+    /// [`tabulate`](crate::tabulate) documents.
+    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist>;
+}
