@@ -17,21 +17,21 @@
 //! integral check accepts agreement under either estimate and notes which
 //! one (see `sampler_checks.rs`).
 //!
-//! Exact 0° is replaced by 0.5°. The file's own density has a narrow spike at the
+//! Why 0.5° and not 0°: the file's own density has a narrow spike at the
 //! mirror direction (p ∝ 1/θ_m from the Jacobian 2π² u_θ sin θ_m, down to the
 //! Jacobian floor at θ_m ≈ 1.6e-5 rad, and 0 at θ_m = 0 where every file's
 //! vndf column u_θ = 0 is 0). At exact normal incidence that spike sits on the
-//! pole of the battery's (cos θ, φ) grid, and the integral check fails for
-//! two materials (measured with this file and `vec![0.0]`, when the battery
-//! still took ∫ pdf from its quadrature: ilm_l3_37_matte
-//! ∫ pdf = 0.999082 against 0.999310 of draws accepted, ilm_solo_m_68
-//! 0.999547 against 0.999950) while every chi-square test passes. Part of the
-//! gap is real, not quadrature: inside the floor cone the format's pdf
-//! max(2π² u_θ sin θ_m, 1e-6) is below the true density of the draws, and
-//! 7.7e-5 of ilm_solo_m_68's draws land there. 0.5° moves the spike off the
-//! pole. Draws are cut to 150,000 per direction (the default is 10^6),
-//! extreme-direction draws to 5,000 and weight draws to 4,096, to keep the
-//! seven materials near 40 s.
+//! pole of the battery's (cos θ, φ) grid, where the quadrature's ∫ pdf falls
+//! short of the fraction of draws accepted although every chi-square test
+//! passes (this file run with θ_o = 0 and ∫ pdf taken from the quadrature
+//! alone: ilm_l3_37_matte 0.999082 against 0.999310, ilm_solo_m_68
+//! 0.999547 against 0.999950). Part of that gap is real, not quadrature:
+//! inside the floor cone the format's pdf max(2π² u_θ sin θ_m, 1e-6) is below
+//! the true density of the draws, and 7.7e-5 of ilm_solo_m_68's draws land
+//! there. 0.5° moves the spike off the pole. Draws are cut to 150,000 per
+//! direction (the default is 10^6), extreme-direction draws to 5,000 and
+//! weight draws to 4,096, so that the seven materials take about 40 s
+//! (`cargo test --release -p acdf-conformance --test rgl`).
 //!
 //! The bilinear warp (`Bilinear2D`) joins the distribution battery with the
 //! bilinear (vertex-valued) semantics of `integral()` and 200,000 draws per

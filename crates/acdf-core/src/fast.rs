@@ -203,20 +203,17 @@ pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
 /// within 2e-7 of the exact values (the tests measure it). NaN and
 /// infinities give NaN.
 ///
-/// This replaced a reduction to the nearest quarter turn and polynomials
-/// of degree 9 and 8 in the rest (paired in one SIMD register for a
-/// draw's two angles): the table entry is read while d is being formed,
-/// and the short polynomials and the turn are a shorter chain, which every
-/// `sample` waits for. One call at a time (a scratch loop of the bench's
-/// calls, built-in nickel, wo changing every call, best of 10 runs of 10^6,
-/// mean of the best three of eight alternating runs, a Zen 5 machine at
-/// about 3.5 GHz) `sample` went from 17.55 to 18.11 M/s (uniform) and from
-/// 15.78 to 16.90 (`adaptive:dp`). The batch forms, which pick the table
-/// entries in their lanes ([`sin_cos_turns_each`]) where they had the
-/// polynomials in SIMD, stayed within 1 to 4% of their speed (a scratch
-/// loop of the bench's calls, six alternating runs: uniform `sample_batch`
-/// 60.5 to 58.3 M/s, `sample_each` 37.5 to 36.7; `adaptive:dp` 62.7 to
-/// 61.0 and 35.1 to 34.8).
+/// Why a table of 64ths rather than a reduction to the nearest quarter turn
+/// with polynomials of degree 9 and 8 in the rest: the table entry is read
+/// while d is being formed, and the short polynomials and the turn make a
+/// shorter chain, which every one-at-a-time `sample` waits for. Measured in
+/// a loop of the calls `acdf bench` times (built-in nickel, wo changing
+/// every call, each figure the best of 10 runs of 10^6 calls, the two forms
+/// alternated and the best three of eight runs averaged), the table form
+/// makes `sample` 3% faster for the uniform sampler and 7% faster for
+/// `adaptive:dp`. The batch forms, which pick the entries in their lanes
+/// ([`sin_cos_turns_each`]), are 1 to 4% slower with it than with the
+/// polynomials in SIMD (same loop, six alternating runs).
 #[inline(always)]
 fn sin_cos_steps(steps: f32) -> (f32, f32) {
     let shifted = steps + ROUND_TO_INTEGER;
@@ -331,12 +328,13 @@ impl QuarterLanes {
 /// signs as the table was filled (`TURN_TABLE`), so the values are the
 /// table's bit for bit.
 ///
-/// Read from memory instead, as eight 8-byte loads per eight angles whose
-/// indices were stored and reloaded, the batch forms were slower and less
-/// steady: uniform `sample_each` 35.9 and `adaptive:dp` `sample_batch`
-/// 56.9 M/s (medians 34.2 and 48.7) against 36.7 and 61.0 (medians 35.3
-/// and 60.7), built-in nickel, mean of the best three of six alternating
-/// runs of a scratch loop of the bench's calls on a Zen 5 machine.
+/// Why registers rather than memory: reading the entries from the table as
+/// eight 8-byte loads per eight angles, with the indices stored and
+/// reloaded, made the batch forms slower and less steady. In a loop of the
+/// calls `acdf bench` times (built-in nickel, six alternating runs, mean of
+/// the best three), uniform `sample_each` was 2% and `adaptive:dp`
+/// `sample_batch` 7% slower at their best, and 3% and 20% slower in the
+/// median.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 unsafe fn turn_entries_lanes(

@@ -29,8 +29,9 @@
 //! |C_xy| > |C_z| with n = 978, which moves its lobe's strength towards
 //! grazing, so it is a much weaker specular than the network away from
 //! grazing. Normalising by |C ⊙ wo| instead (a unit lobe along its axis for
-//! every wo) would overshoot the networks by factors of 4.7, 1.8 and 16 at
-//! θ_d = 30°, so the C_max form is kept. These are stand-ins with the right
+//! every wo) overshoots the networks in the same comparison by factors of
+//! 4.7, 1.8 and 16 at θ_d = 30°, which is why the lobe is divided by C_max.
+//! These are stand-ins with the right
 //! shape and order of magnitude, not fits to trust in absolute value.
 
 use acdf_core::{Brdf, Rgb, Vec3};
