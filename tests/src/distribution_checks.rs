@@ -423,6 +423,47 @@ fn check_1d<D: Distribution1D>(
         table.expect,
     );
 
+    let observed = histogram_1d(d, table, n, m, &mut rng, &case, &mut report);
+    let (expected, integral) = expected_counts_1d(d, n, m, config, &case, &mut report);
+    let outcome = chi_square(&observed, &expected);
+    if outcome.impossible > 0 {
+        report.fail(
+            Check::ZeroExpectedCell,
+            &case,
+            format!(
+                "{} samples where the pdf integrates to 0, first in cell {:?} of {m}",
+                outcome.impossible, outcome.first_impossible_cell
+            ),
+        );
+    }
+
+    check_extremes_1d(d, table, &case, &mut report);
+    let line = ChiSquareLine {
+        subject: subject.to_string(),
+        case: format!("table={} (n={})", table.name, table.values.len()),
+        samples: n,
+        failed_draws: 0,
+        integral,
+        statistic: outcome.statistic,
+        dof: outcome.dof,
+        p_value: outcome.p_value,
+        threshold: 0.0,
+    };
+    (line, report)
+}
+
+/// Draw n samples in batches and count them in m equal cells of [0, 1),
+/// checking every sample, the first batch against `sample`, and that
+/// `invert` undoes the first 4096 draws.
+fn histogram_1d<D: Distribution1D>(
+    d: &D,
+    table: &Table1D,
+    n: usize,
+    m: usize,
+    rng: &mut Pcg64,
+    case: &str,
+    report: &mut Report,
+) -> Vec<u64> {
     let mut observed = vec![0u64; m];
     let chunk = 4096;
     let mut us = vec![0f32; chunk];
@@ -440,18 +481,18 @@ fn check_1d<D: Distribution1D>(
             if let Some(single) = single.filter(|t| !(close(t.x, s.x) && close(t.pdf, s.pdf))) {
                 report.fail(
                     Check::Batch,
-                    &case,
+                    case,
                     format!("sample_batch gave {s:?}, sample gave {single:?}"),
                 );
             }
-            check_sample_1d(&mut report, &case, d, s);
+            check_sample_1d(report, case, d, s);
             if drawn < 4096 {
                 let back = d.invert(s.x) as f64;
                 let allowed = 1e-5 + 2e-7 * peak_density(&table.values);
                 if (back - us[k] as f64).abs() > allowed || !back.is_finite() {
                     report.fail(
                         Check::Inverse,
-                        &case,
+                        case,
                         format!("invert(sample({}).x = {}) = {back}", us[k], s.x),
                     );
                 }
@@ -462,7 +503,20 @@ fn check_1d<D: Distribution1D>(
         }
         drawn += c;
     }
+    observed
+}
 
+/// Expected counts n ∫_cell pdf over m equal cells by adaptive quadrature,
+/// with ∫ pdf; a pdf that is invalid anywhere or does not integrate to 1
+/// is a failure.
+fn expected_counts_1d<D: Distribution1D>(
+    d: &D,
+    n: usize,
+    m: usize,
+    config: &DistributionConfig,
+    case: &str,
+    report: &mut Report,
+) -> (Vec<f64>, f64) {
     let tolerance = config.quadrature_tolerance / n as f64;
     let mut invalid = None;
     let mut expected = vec![0.0; m];
@@ -490,29 +544,22 @@ fn check_1d<D: Distribution1D>(
         error += q.error;
     }
     if let Some((x, p)) = invalid {
-        report.fail(Check::PdfInvalid, &case, format!("pdf({x}) = {p}"));
+        report.fail(Check::PdfInvalid, case, format!("pdf({x}) = {p}"));
     }
     if (integral - 1.0).abs() > 1e-4 + error {
         report.fail(
             Check::Integral,
-            &case,
+            case,
             format!("∫ pdf = {integral:.6}, expected 1"),
         );
     }
-    let outcome = chi_square(&observed, &expected);
-    if outcome.impossible > 0 {
-        report.fail(
-            Check::ZeroExpectedCell,
-            &case,
-            format!(
-                "{} samples where the pdf integrates to 0, first in cell {:?} of {m}",
-                outcome.impossible, outcome.first_impossible_cell
-            ),
-        );
-    }
+    (expected, integral)
+}
 
-    // Extreme u: the edges of [0, 1), values beyond, and the CDF at every
-    // table cell edge (k/n) and vertex (k/(n-1)).
+/// Extreme u: the edges of [0, 1), values beyond, and the CDF at every
+/// table cell edge (k/n) and vertex (k/(n-1)); `pdf` outside [0, 1) and at
+/// every cell edge.
+fn check_extremes_1d<D: Distribution1D>(d: &D, table: &Table1D, case: &str, report: &mut Report) {
     let len = table.values.len();
     let mut extreme: Vec<f32> = vec![
         0.0,
@@ -532,12 +579,12 @@ fn check_1d<D: Distribution1D>(
     }
     for &u in &extreme {
         let s = d.sample(u);
-        check_sample_1d(&mut report, &case, d, s);
+        check_sample_1d(report, case, d, s);
         let c = d.sample(clamp_unit(u));
         if s.x.to_bits() != c.x.to_bits() || s.pdf.to_bits() != c.pdf.to_bits() {
             report.fail(
                 Check::Extremes,
-                &case,
+                case,
                 format!("sample({u}) = {s:?} but sample(clamp_unit(u)) = {c:?}"),
             );
         }
@@ -555,7 +602,7 @@ fn check_1d<D: Distribution1D>(
         if !(p.is_finite() && p >= 0.0) || (p != 0.0 && !(0.0..1.0).contains(&x)) {
             report.fail(
                 Check::Extremes,
-                &case,
+                case,
                 format!("pdf({x}) = {p}, expected 0 outside [0, 1)"),
             );
         }
@@ -566,30 +613,18 @@ fn check_1d<D: Distribution1D>(
         if table.expect == Expect::UniformFallback && p != 1.0 {
             report.fail(
                 Check::Extremes,
-                &case,
+                case,
                 format!("all-zero table: pdf({x}) = {p}, expected the uniform 1"),
             );
         }
         if !(p.is_finite() && p >= 0.0) {
             report.fail(
                 Check::PdfInvalid,
-                &case,
+                case,
                 format!("pdf({x}) = {p} at a cell edge"),
             );
         }
     }
-    let line = ChiSquareLine {
-        subject: subject.to_string(),
-        case: format!("table={} (n={len})", table.name),
-        samples: n,
-        failed_draws: 0,
-        integral,
-        statistic: outcome.statistic,
-        dof: outcome.dof,
-        p_value: outcome.p_value,
-        threshold: 0.0,
-    };
-    (line, report)
 }
 
 fn check_sample_1d<D: Distribution1D>(
@@ -688,6 +723,7 @@ fn check_pdf_batch_2d<D: Distribution2D>(
     }
 }
 
+/// Chi-square and consistency for one 2D distribution built from `table`.
 fn check_2d<D: Distribution2D>(
     subject: &str,
     d: &D,
@@ -712,6 +748,47 @@ fn check_2d<D: Distribution2D>(
         table.expect,
     );
 
+    let observed = histogram_2d(d, table, n, (mx, my), &mut rng, &case, &mut report);
+    let (expected, integral) = expected_counts_2d(d, n, (mx, my), config, &case, &mut report);
+    let outcome = chi_square(&observed, &expected);
+    if outcome.impossible > 0 {
+        report.fail(
+            Check::ZeroExpectedCell,
+            &case,
+            format!(
+                "{} samples where the pdf integrates to 0, first in cell {:?}",
+                outcome.impossible, outcome.first_impossible_cell
+            ),
+        );
+    }
+
+    check_extremes_2d(d, table, &case, &mut report);
+    let line = ChiSquareLine {
+        subject: subject.to_string(),
+        case: format!("table={} ({}x{})", table.name, table.nx, table.ny),
+        samples: n,
+        failed_draws: 0,
+        integral,
+        statistic: outcome.statistic,
+        dof: outcome.dof,
+        p_value: outcome.p_value,
+        threshold: 0.0,
+    };
+    (line, report)
+}
+
+/// Draw n samples in batches and count them in mx × my equal cells of
+/// [0, 1)^2, checking every sample, `pdf_batch` and the first batch against
+/// `sample`, and that `invert` undoes the first 4096 draws.
+fn histogram_2d<D: Distribution2D>(
+    d: &D,
+    table: &Table2D,
+    n: usize,
+    (mx, my): (usize, usize),
+    rng: &mut Pcg64,
+    case: &str,
+    report: &mut Report,
+) -> Vec<u64> {
     let mut observed = vec![0u64; mx * my];
     let chunk = 4096;
     let mut us = vec![Vec2::ZERO; chunk];
@@ -725,7 +802,7 @@ fn check_2d<D: Distribution2D>(
         }
         d.sample_batch(&us[..c], &mut out[..c]);
         if drawn == 0 {
-            check_pdf_batch_2d(&mut report, &case, d, &out[..c]);
+            check_pdf_batch_2d(report, case, d, &out[..c]);
         }
         for k in 0..c {
             let s = out[k];
@@ -736,18 +813,18 @@ fn check_2d<D: Distribution2D>(
             if let Some(single) = single.filter(differs) {
                 report.fail(
                     Check::Batch,
-                    &case,
+                    case,
                     format!("sample_batch gave {s:?}, sample gave {single:?}"),
                 );
             }
-            check_sample_2d(&mut report, &case, d, s);
+            check_sample_2d(report, case, d, s);
             if drawn < 4096 {
                 let back = d.invert(s.p);
                 if (back - us[k]).abs().max_element() as f64 > allowed_inverse || !back.is_finite()
                 {
                     report.fail(
                         Check::Inverse,
-                        &case,
+                        case,
                         format!("invert(sample({}).p = {}) = {back}", us[k], s.p),
                     );
                 }
@@ -760,7 +837,20 @@ fn check_2d<D: Distribution2D>(
         }
         drawn += c;
     }
+    observed
+}
 
+/// Expected counts n ∫_cell pdf over mx × my equal cells by adaptive
+/// quadrature, with ∫ pdf; a pdf that is invalid anywhere or does not
+/// integrate to 1 is a failure.
+fn expected_counts_2d<D: Distribution2D>(
+    d: &D,
+    n: usize,
+    (mx, my): (usize, usize),
+    config: &DistributionConfig,
+    case: &str,
+    report: &mut Report,
+) -> (Vec<f64>, f64) {
     let tolerance = config.quadrature_tolerance / n as f64;
     let mut invalid = None;
     let mut expected = vec![0.0; mx * my];
@@ -791,28 +881,21 @@ fn check_2d<D: Distribution2D>(
         }
     }
     if let Some((x, y, p)) = invalid {
-        report.fail(Check::PdfInvalid, &case, format!("pdf({x}, {y}) = {p}"));
+        report.fail(Check::PdfInvalid, case, format!("pdf({x}, {y}) = {p}"));
     }
     if (integral - 1.0).abs() > 1e-4 + error {
         report.fail(
             Check::Integral,
-            &case,
+            case,
             format!("∫ pdf = {integral:.6}, expected 1"),
         );
     }
-    let outcome = chi_square(&observed, &expected);
-    if outcome.impossible > 0 {
-        report.fail(
-            Check::ZeroExpectedCell,
-            &case,
-            format!(
-                "{} samples where the pdf integrates to 0, first in cell {:?}",
-                outcome.impossible, outcome.first_impossible_cell
-            ),
-        );
-    }
+    (expected, integral)
+}
 
-    // Extreme u: edges, values beyond, and the CDF at every table corner.
+/// Extreme u: edges, values beyond, and the CDF at every table corner;
+/// `pdf` outside [0, 1)^2 and, for an all-zero table, the uniform fallback.
+fn check_extremes_2d<D: Distribution2D>(d: &D, table: &Table2D, case: &str, report: &mut Report) {
     let mut edges = vec![0.0, ONE_MINUS_EPSILON, 1.0, -1.0, f32::NAN, f32::INFINITY];
     let mut us_extreme = Vec::new();
     for j in 0..=table.ny {
@@ -829,14 +912,14 @@ fn check_2d<D: Distribution2D>(
     }
     for &u in &us_extreme {
         let s = d.sample(u);
-        check_sample_2d(&mut report, &case, d, s);
+        check_sample_2d(report, case, d, s);
         let c = d.sample(Vec2::new(clamp_unit(u.x), clamp_unit(u.y)));
         if s.p.to_array().map(f32::to_bits) != c.p.to_array().map(f32::to_bits)
             || s.pdf.to_bits() != c.pdf.to_bits()
         {
             report.fail(
                 Check::Extremes,
-                &case,
+                case,
                 format!("sample({u}) = {s:?} but sample(clamp_unit(u)) = {c:?}"),
             );
         }
@@ -852,7 +935,7 @@ fn check_2d<D: Distribution2D>(
         if q != 0.0 {
             report.fail(
                 Check::Extremes,
-                &case,
+                case,
                 format!("pdf({p}) = {q}, expected 0 outside [0, 1)^2"),
             );
         }
@@ -867,24 +950,12 @@ fn check_2d<D: Distribution2D>(
             if q != 1.0 {
                 report.fail(
                     Check::Extremes,
-                    &case,
+                    case,
                     format!("all-zero table: pdf({p}) = {q}, expected the uniform 1"),
                 );
             }
         }
     }
-    let line = ChiSquareLine {
-        subject: subject.to_string(),
-        case: format!("table={} ({}x{})", table.name, table.nx, table.ny),
-        samples: n,
-        failed_draws: 0,
-        integral,
-        statistic: outcome.statistic,
-        dof: outcome.dof,
-        p_value: outcome.p_value,
-        threshold: 0.0,
-    };
-    (line, report)
 }
 
 /// What one table gave: its case name, the checks after construction (or

@@ -3,7 +3,7 @@
 //! integral of the pdf against the fraction of successful draws, finite
 //! weights, and extreme outgoing directions, uniform numbers and BRDFs.
 
-use crate::chi2::{chi_square, sidak};
+use crate::chi2::{chi_square, sidak, ChiSquareOutcome};
 use crate::quadrature::integrate_2d_split;
 use crate::report::{Check, ChiSquareLine, Report};
 use acdf_core::geometry::{phi, spherical_direction};
@@ -354,8 +354,32 @@ struct Fit {
     report: Report,
 }
 
+/// One chi-square case: a sampler at one wo, its histogram grid and its
+/// sample count.
+struct FitCase<'a> {
+    /// The sampler and BRDF, described for messages.
+    case: String,
+    sampler: &'a dyn BxdfSampler,
+    brdf: Option<&'a dyn Brdf>,
+    wo: Vec3,
+    /// Cells over cos θ in [-1, 1] and over φ; one more bin counts `None`.
+    nt: usize,
+    np: usize,
+    /// Draws.
+    n: usize,
+    config: &'a SamplerConfig,
+}
+
+impl FitCase<'_> {
+    /// The index of the `None` bin, after the nt × np cells.
+    fn none_bin(&self) -> usize {
+        self.nt * self.np
+    }
+}
+
 /// Draw `config.samples` directions for one wo, histogram them over
-/// (cos θ, φ) cells and compare with N ∫_cell pdf d(cos θ) dφ.
+/// (cos θ, φ) cells and compare with N ∫_cell pdf d(cos θ) dφ; then compare
+/// ∫ pdf with the fraction of draws that succeeded.
 fn goodness_of_fit(
     subject: &str,
     sampler: &dyn BxdfSampler,
@@ -364,17 +388,52 @@ fn goodness_of_fit(
     stream: u64,
     config: &SamplerConfig,
 ) -> Fit {
-    let case = format!("{subject} {}", describe(brdf, wo));
+    let fit = FitCase {
+        case: format!("{subject} {}", describe(brdf, wo)),
+        sampler,
+        brdf,
+        wo,
+        nt: config.cos_theta_cells.max(2),
+        np: config.phi_cells.max(1),
+        n: config.samples.max(1),
+        config,
+    };
     let mut report = Report::new(subject);
-    let (nt, np) = (config.cos_theta_cells.max(2), config.phi_cells.max(1));
-    let n = config.samples.max(1);
-    let mut observed = vec![0u64; nt * np + 1];
-    let mut failed = 0usize;
     let mut rng = Pcg64::seed_from_u64(
         config
             .seed
             .wrapping_add(stream.wrapping_mul(0x9e37_79b9_7f4a_7c15)),
     );
+    let (observed, failed) = draw_histogram(&fit, &mut report, &mut rng);
+    let (expected, integral) = expected_counts(&fit, &mut report);
+    let outcome = chi_square(&observed, &expected);
+    report_impossible_cells(&fit, &outcome, &mut report);
+    check_integral_of_pdf(&fit, failed, integral, &mut rng, &mut report);
+    Fit {
+        line: ChiSquareLine {
+            subject: subject.to_string(),
+            case: describe(brdf, wo),
+            samples: fit.n,
+            failed_draws: failed,
+            integral,
+            statistic: outcome.statistic,
+            dof: outcome.dof,
+            p_value: outcome.p_value,
+            threshold: 0.0,
+        },
+        report,
+    }
+}
+
+/// Draw the case's samples in batches and count them per (cos θ, φ) cell,
+/// failed draws in the `None` bin; on the way, check every sample
+/// ([`check_sample`]), the first weights ([`check_weight`]), and that the
+/// batch entry points agree with the single ones on the first batch.
+/// Returns the counts and the number of failed draws.
+fn draw_histogram(fit: &FitCase<'_>, report: &mut Report, rng: &mut Pcg64) -> (Vec<u64>, usize) {
+    let (sampler, wo, case) = (fit.sampler, fit.wo, &fit.case);
+    let mut observed = vec![0u64; fit.none_bin() + 1];
+    let mut failed = 0usize;
     let chunk = 4096;
     let mut us = vec![Vec2::ZERO; chunk];
     let mut out = vec![None; chunk];
@@ -382,8 +441,8 @@ fn goodness_of_fit(
     let mut pdfs = vec![0f32; chunk];
     let mut drawn = 0;
     let mut weighed = 0;
-    while drawn < n {
-        let m = chunk.min(n - drawn);
+    while drawn < fit.n {
+        let m = chunk.min(fit.n - drawn);
         for u in &mut us[..m] {
             *u = Vec2::new(rng.random(), rng.random());
         }
@@ -393,37 +452,18 @@ fn goodness_of_fit(
         }
         sampler.pdf_batch(wo, &wis[..m], &mut pdfs[..m]);
         if drawn == 0 {
-            // The batch entry points must agree with the single ones.
-            for k in 0..m.min(64) {
-                let single = sampler.sample(wo, us[k]);
-                if !close_sample(&single, &out[k]) {
-                    report.fail(
-                        Check::Batch,
-                        &case,
-                        format!("sample_batch gave {:?}, sample gave {single:?}", out[k]),
-                    );
-                }
-                let p = sampler.pdf(wo, wis[k]);
-                if !close(p, pdfs[k]) {
-                    report.fail(
-                        Check::Batch,
-                        &case,
-                        format!("pdf_batch gave {}, pdf gave {p}", pdfs[k]),
-                    );
-                }
-            }
-            check_each(&mut report, &case, sampler, wo, &us[..m.min(64)]);
+            check_batch_against_single(fit, &us[..m], &out[..m], &wis[..m], &pdfs[..m], report);
         }
         for k in 0..m {
             let Some(s) = out[k] else {
                 failed += 1;
-                observed[nt * np] += 1;
+                observed[fit.none_bin()] += 1;
                 continue;
             };
-            check_sample(&mut report, &case, &s, pdfs[k]);
-            if weighed < config.weight_samples {
-                if let Some(b) = brdf {
-                    check_weight(&mut report, &case, b, wo, &s);
+            check_sample(report, case, &s, pdfs[k]);
+            if weighed < fit.config.weight_samples {
+                if let Some(b) = fit.brdf {
+                    check_weight(report, case, b, wo, &s);
                 }
                 weighed += 1;
             }
@@ -431,18 +471,60 @@ fn goodness_of_fit(
                 continue;
             }
             let z = (s.wi.z as f64).clamp(-1.0, 1.0);
-            let row = (((z + 1.0) * 0.5 * nt as f64) as usize).min(nt - 1);
-            let col = ((phi(s.wi) as f64 / TAU * np as f64) as usize).min(np - 1);
-            observed[row * np + col] += 1;
+            let row = (((z + 1.0) * 0.5 * fit.nt as f64) as usize).min(fit.nt - 1);
+            let col = ((phi(s.wi) as f64 / TAU * fit.np as f64) as usize).min(fit.np - 1);
+            observed[row * fit.np + col] += 1;
         }
         drawn += m;
     }
+    (observed, failed)
+}
 
-    // Expected counts. By contract pdf = 0 below the horizon (probed
-    // separately), so only cells with cos θ > 0 are integrated.
-    let tolerance = config.quadrature_tolerance / n as f64;
+/// The batch entry points must agree with the single ones: the first 64
+/// draws of a batch (`u`, their samples `out`, the directions `wis` whose
+/// batch densities are `pdfs`) against `sample` and `pdf`, then the
+/// one-wo-per-pair forms ([`check_each`]).
+fn check_batch_against_single(
+    fit: &FitCase<'_>,
+    u: &[Vec2],
+    out: &[Option<BxdfSample>],
+    wis: &[Vec3],
+    pdfs: &[f32],
+    report: &mut Report,
+) {
+    let (sampler, wo, case) = (fit.sampler, fit.wo, &fit.case);
+    let m = u.len().min(64);
+    for k in 0..m {
+        let single = sampler.sample(wo, u[k]);
+        if !close_sample(&single, &out[k]) {
+            report.fail(
+                Check::Batch,
+                case,
+                format!("sample_batch gave {:?}, sample gave {single:?}", out[k]),
+            );
+        }
+        let p = sampler.pdf(wo, wis[k]);
+        if !close(p, pdfs[k]) {
+            report.fail(
+                Check::Batch,
+                case,
+                format!("pdf_batch gave {}, pdf gave {p}", pdfs[k]),
+            );
+        }
+    }
+    check_each(report, case, sampler, wo, &u[..m]);
+}
+
+/// Expected counts N ∫_cell pdf per (cos θ, φ) cell by adaptive quadrature,
+/// and in the `None` bin N (1 - ∫ pdf); returns them with ∫ pdf. By
+/// contract pdf = 0 below the horizon (probed separately), so only cells
+/// with cos θ > 0 are integrated. A pdf that is negative or not finite
+/// anywhere is a failure.
+fn expected_counts(fit: &FitCase<'_>, report: &mut Report) -> (Vec<f64>, f64) {
+    let (nt, np, n) = (fit.nt, fit.np, fit.n);
+    let tolerance = fit.config.quadrature_tolerance / n as f64;
     let mut invalid_pdf: Option<(Vec3, f32)> = None;
-    let mut expected = vec![0.0f64; nt * np + 1];
+    let mut expected = vec![0.0f64; fit.none_bin() + 1];
     let mut integral = 0.0;
     for row in 0..nt {
         let z0 = -1.0 + 2.0 * row as f64 / nt as f64;
@@ -463,7 +545,7 @@ fn goodness_of_fit(
                     let z = z.max(HORIZON_NODE);
                     let r = (1.0 - z * z).max(0.0).sqrt();
                     let wi = Vec3::new((r * ph.cos()) as f32, (r * ph.sin()) as f32, z as f32);
-                    let p = sampler.pdf(wo, wi);
+                    let p = fit.sampler.pdf(fit.wo, wi);
                     if p.is_finite() && p >= 0.0 {
                         p as f64
                     } else {
@@ -474,52 +556,71 @@ fn goodness_of_fit(
                 (p0, p1),
                 (z0, z1),
                 tolerance,
-                config.quadrature_splits,
+                fit.config.quadrature_splits,
             );
             expected[row * np + col] = e.value * n as f64;
             integral += e.value;
         }
     }
     if let Some((wi, p)) = invalid_pdf {
-        report.fail(Check::PdfInvalid, &case, format!("pdf(wo, {wi}) = {p}"));
+        report.fail(Check::PdfInvalid, &fit.case, format!("pdf(wo, {wi}) = {p}"));
     }
-    expected[nt * np] = n as f64 * (1.0 - integral).max(0.0);
+    expected[fit.none_bin()] = n as f64 * (1.0 - integral).max(0.0);
+    (expected, integral)
+}
 
-    let outcome = chi_square(&observed, &expected);
-    if outcome.impossible > 0 {
-        let cell = outcome.first_impossible_cell.unwrap_or(0);
-        let what = if cell == nt * np {
-            "the `None` bin".to_string()
-        } else {
-            format!("cell (cos θ row {}, φ column {})", cell / np, cell % np)
-        };
-        report.fail(
-            Check::ZeroExpectedCell,
-            &case,
-            format!(
-                "{} samples where the pdf integrates to 0, first in {what}",
-                outcome.impossible
-            ),
-        );
+/// A sample in a cell where the pdf integrates to 0 is a failure whatever
+/// the chi-square statistic says.
+fn report_impossible_cells(fit: &FitCase<'_>, outcome: &ChiSquareOutcome, report: &mut Report) {
+    if outcome.impossible == 0 {
+        return;
     }
+    let cell = outcome.first_impossible_cell.unwrap_or(0);
+    let what = if cell == fit.none_bin() {
+        "the `None` bin".to_string()
+    } else {
+        format!(
+            "cell (cos θ row {}, φ column {})",
+            cell / fit.np,
+            cell % fit.np
+        )
+    };
+    report.fail(
+        Check::ZeroExpectedCell,
+        &fit.case,
+        format!(
+            "{} samples where the pdf integrates to 0, first in {what}",
+            outcome.impossible
+        ),
+    );
+}
 
-    // ∫ pdf ≤ 1 and ∫ pdf ≈ fraction of successful draws. Two independent
-    // estimates of the integral have opposite blind spots: the stratified
-    // Monte Carlo one is unbiased, but an isolated spike that no point hits
-    // (the mirror peak of a sharp lobe at grazing wo) leaves it low with an
-    // overconfident standard error; the adaptive quadrature resolves such a
-    // spike but can miss structure aligned with its nodes. A correct pdf
-    // agrees with the successful fraction under at least one of them; a
-    // wrong one (a scale, a missing Jacobian, a shifted table) moves both,
-    // so the check fails only when neither agrees.
+/// ∫ pdf ≤ 1 and ∫ pdf ≈ fraction of successful draws.
+///
+/// Two independent estimates of the integral have opposite blind spots:
+/// the stratified Monte Carlo one is unbiased, but an isolated spike that
+/// no point hits (the mirror peak of a sharp lobe at grazing wo) leaves it
+/// low with an overconfident standard error; the adaptive quadrature
+/// (`integral`) resolves such a spike but can miss structure aligned with
+/// its nodes. A correct pdf agrees with the successful fraction under at
+/// least one of them; a wrong one (a scale, a missing Jacobian, a shifted
+/// table) moves both, so the check fails only when neither agrees.
+fn check_integral_of_pdf(
+    fit: &FitCase<'_>,
+    failed: usize,
+    integral: f64,
+    rng: &mut Pcg64,
+    report: &mut Report,
+) {
+    let (n, case) = (fit.n, &fit.case);
     let success = 1.0 - failed as f64 / n as f64;
     let se_success = (success * (1.0 - success)).max(1.0 / n as f64).sqrt() / (n as f64).sqrt();
-    let (mc, se_mc) = stratified_integral(sampler, wo, n, &mut rng);
+    let (mc, se_mc) = stratified_integral(fit.sampler, fit.wo, n, rng);
     let se = (se_success * se_success + se_mc * se_mc).sqrt();
     if mc > 1.0 + 1e-3 + 3.0 * se_mc {
         report.fail(
             Check::Integral,
-            &case,
+            case,
             format!("∫ pdf = {mc:.6} ± {se_mc:.1e} > 1 + 1e-3"),
         );
     }
@@ -539,28 +640,13 @@ fn goodness_of_fit(
     if !mc_agrees && !quadrature_agrees {
         report.fail(
             Check::Integral,
-            &case,
+            case,
             format!(
                 "∫ pdf = {mc:.6} ± {se_mc:.1e} (quadrature {integral:.6}) but {success:.6} of the draws \
                  succeeded (allowed difference 3 σ = {:.2e})",
                 3.0 * se
             ),
         );
-    }
-
-    Fit {
-        line: ChiSquareLine {
-            subject: subject.to_string(),
-            case: describe(brdf, wo),
-            samples: n,
-            failed_draws: failed,
-            integral,
-            statistic: outcome.statistic,
-            dof: outcome.dof,
-            p_value: outcome.p_value,
-            threshold: 0.0,
-        },
-        report,
     }
 }
 

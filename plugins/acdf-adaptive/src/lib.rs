@@ -1,6 +1,6 @@
 //! `acdf-adaptive` implements the adaptive numerical CDF of Lawrence,
-//! Rusinkiewicz and Ramamoorthi (2005): every tabulated CDF curve of the
-//! uniform measured-BRDF sampler is replaced by a few of its vertices, chosen
+//! Rusinkiewicz and Ramamoorthi (2005): every CDF curve of a tabulated
+//! measured-BRDF slice is replaced by a few of its vertices, chosen
 //! by a curve simplifier, so that the tables shrink while the sampler follows
 //! the BRDF nearly as well.
 //!
@@ -14,9 +14,10 @@
 //! - [`AdaptiveCdf1D`] and [`AdaptiveCdf2D`]: piecewise-linear CDFs through the
 //!   kept vertices (piecewise-constant densities), implementing acdf-core's
 //!   `Distribution1D` and `Distribution2D`;
-//! - [`AdaptiveBrdfSampler`]: the measured-BRDF sampler, which is the uniform
-//!   plug-in's generic `TabulatedBrdfSampler` with an [`AdaptiveCdf2D`] per
-//!   outgoing-direction slice, built by [`AdaptiveBuilder`];
+//! - [`AdaptiveBrdfSampler`]: the measured-BRDF sampler, which is
+//!   `acdf-tabulated`'s generic `TabulatedBrdfSampler` with an
+//!   [`AdaptiveCdf2D`] per outgoing-direction slice, built by
+//!   [`AdaptiveBuilder`];
 //!   [`average_resolution`] reports the mean kept vertices as in the paper.
 //!
 //! # Tolerances and how the defaults were chosen
