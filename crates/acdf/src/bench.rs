@@ -197,20 +197,28 @@ fn load_average() -> Option<f64> {
 /// The core clock in GHz: additions per second in a chain where each
 /// waits for the one before, which takes one cycle per addition on x86-64
 /// cores; best of five runs of 10^8 (about 30 ms each at 3.5 GHz).
+///
+/// The addend is a register, not an immediate: cores that fold chains of
+/// immediate additions at register renaming (recent Intel cores do) would
+/// otherwise retire several per cycle, and the reading would exceed the
+/// clock (11 GHz on a Xeon whose cores turbo to 4).
 #[cfg(target_arch = "x86_64")]
 pub fn clock_ghz() -> Option<f64> {
     const ADDITIONS: u64 = 100_000_000;
     let seconds = best_seconds(5, || {
         let mut x = 0u64;
+        let one = std::hint::black_box(1u64);
         for _ in 0..ADDITIONS / 4 {
-            // SAFETY: four additions to one register; no memory, no stack.
+            // SAFETY: four additions of one register to another; no memory,
+            // no stack.
             unsafe {
                 std::arch::asm!(
-                    "add {x}, 1",
-                    "add {x}, 1",
-                    "add {x}, 1",
-                    "add {x}, 1",
+                    "add {x}, {one}",
+                    "add {x}, {one}",
+                    "add {x}, {one}",
+                    "add {x}, {one}",
                     x = inout(reg) x,
+                    one = in(reg) one,
                     options(nomem, nostack),
                 );
             }
