@@ -296,7 +296,12 @@ mod tests {
     #[test]
     fn sampler_names_round_trip() {
         for name in sampler_names() {
-            assert_eq!(name.parse::<SamplerSpec>().unwrap().to_string(), name);
+            let spec: SamplerSpec = name.parse().unwrap();
+            // `adaptive` alone prints as the simplifier it stands for.
+            if spec.family().simplifiers && !name.contains(':') {
+                continue;
+            }
+            assert_eq!(spec.to_string(), name);
         }
         assert_eq!(
             "adaptive".parse::<SamplerSpec>().unwrap(),

@@ -13,18 +13,8 @@
 //! bounds ([`ErrorBound`]); [`vertical_error`] measures the vertical one for
 //! any result.
 //!
-//! | name      | algorithm                    | tolerance bounds                |
-//! |-----------|------------------------------|---------------------------------|
-//! | `dp`      | Douglas-Peucker              | vertical error                  |
-//! | `dp-perp` | Douglas-Peucker (classic)    | perpendicular distance          |
-//! | `vw`      | Visvalingam-Whyatt           | vertical error                  |
-//! | `vw-area` | Visvalingam-Whyatt (classic) | effective area of each removal  |
-//! | `rw`      | Reumann-Witkam, one pass     | vertical error                  |
-//! | `optimal` | fewest vertices (DAG search) | vertical error                  |
-//! | `chi2`    | fewest vertices (DAG search) | chi-square divergence (variance) |
-//! | `opheim`  | Opheim, one pass             | vertical error                  |
-//!
-//! [`SIMPLIFIERS`] is the one list of them: [`simplifier_by_name`],
+//! [`SIMPLIFIERS`] is the one list of them, each with a line saying what
+//! its tolerance bounds: [`simplifier_by_name`],
 //! [`SIMPLIFIER_NAMES`], the `acdf` command's `adaptive:NAME` samplers, its
 //! help texts and error messages, and the default set of `acdf report` all
 //! derive from it. Adding a simplifier is one type implementing

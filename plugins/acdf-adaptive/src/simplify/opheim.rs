@@ -15,7 +15,8 @@ use super::{sanitize, trivial, usable_len, ErrorBound, Simplifier};
 /// **What the tolerance bounds: the vertical error.** The strip is vertical
 /// with half-width tolerance / 2, and every point after the key point up to
 /// the next key point is checked against it (the points closer than
-/// `min_distance` too). The ray and the chord between the two key points
+/// `min_distance` too: when the point right after the key point lies outside
+/// the strip, it is the next key point). The ray and the chord between the two key points
 /// start at the same key point and differ by at most tolerance / 2 at the
 /// chord's end, hence everywhere between, so every tabulated point lies
 /// within the tolerance of the chord, vertically (and so also
@@ -104,13 +105,15 @@ impl Simplifier for Opheim {
         let mut key = 0usize;
         while key < n - 1 {
             let slope = self.aim(x, p, key, n);
+            let off_ray = |k: usize| (p[k] - p[key] - slope * (x[k] - x[key])).abs() > half;
+            let too_far = |k: usize| (x[k] - x[key]).hypot(p[k] - p[key]) > max_distance;
+            // The next point is always a valid next key; the walk goes on
+            // past it only if it lies inside the strip itself.
             let mut j = key + 1;
-            while j + 1 < n {
-                let (dx, dp) = (x[j + 1] - x[key], p[j + 1] - p[key]);
-                if (dp - slope * dx).abs() > half || dx.hypot(dp) > max_distance {
-                    break;
+            if !off_ray(j) {
+                while j + 1 < n && !off_ray(j + 1) && !too_far(j + 1) {
+                    j += 1;
                 }
-                j += 1;
             }
             kept.push(j);
             key = j;
