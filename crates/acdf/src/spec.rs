@@ -104,7 +104,7 @@ impl MaterialSpec {
 
 /// A simplifier of the adaptive sampler, by its command-line name: a checked
 /// handle to an entry of the adaptive plug-in's table
-/// ([`SIMPLIFIERS`](acdf_adaptive::simplify::SIMPLIFIERS)), the one list of
+/// ([`acdf_adaptive::simplify::SIMPLIFIERS`]), the one list of
 /// simplifier names from which parsing, help texts and error messages
 /// derive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
