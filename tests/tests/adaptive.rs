@@ -94,3 +94,4 @@ join!("chi2", chi2_1d, chi2_2d, chi2_sampler);
 // minute.
 join!("dp-perp", dp_perp_1d, dp_perp_2d);
 join!("vw-area", vw_area_1d, vw_area_2d);
+join!("opheim", opheim_1d, opheim_2d, opheim_sampler);

@@ -15,12 +15,19 @@ pub enum Error {
     #[error("material `{spec}`: {message}")]
     Material { spec: String, message: String },
 
-    /// `--sampler` named nothing acdf knows.
-    #[error(
-        "unknown sampler `{0}`: expected one of cosine, uniform, adaptive, adaptive:dp, \
-         adaptive:vw, adaptive:rw, adaptive:optimal, adaptive:chi2, rgl"
-    )]
-    UnknownSampler(String),
+    /// `--sampler` named nothing acdf knows; `known` lists every name
+    /// ([`sampler_names`](crate::registry::sampler_names)).
+    #[error("unknown sampler `{name}`: expected one of {known}")]
+    UnknownSampler { name: String, known: String },
+
+    /// A sampler file records a kind of sampler that no family of the
+    /// registry reads; `known` lists the kinds that are read.
+    #[error("sampler file {}: unknown sampler kind `{kind}`; the known kinds are {known}", path.display())]
+    UnknownSamplerKind {
+        path: PathBuf,
+        kind: String,
+        known: String,
+    },
 
     /// The sampler cannot be used with this material (e.g. `rgl` needs a
     /// `.bsdf` file).

@@ -69,5 +69,5 @@ pub use efficiency::{measure_efficiencies, measure_efficiency, Efficiency, Effic
 pub use env::{EnvMap, Environment, Sky};
 pub use error::{Error, Result};
 pub use material::{load_material, Material};
-pub use registry::{make_sampler, AnySampler, SamplerOptions};
+pub use registry::{make_sampler, AnySampler, SamplerOps, SamplerOptions, SAMPLERS};
 pub use spec::{MaterialSpec, SamplerSpec, SimplifierName};

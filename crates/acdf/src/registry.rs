@@ -1,15 +1,22 @@
 //! The sampler registry: every concrete sampler behind one enum,
-//! [`AnySampler`], built from its command-line name by [`make_sampler`].
+//! [`AnySampler`], and one table of sampler families, [`SAMPLERS`], from
+//! which the command line's names ([`SamplerSpec`] parsing,
+//! [`sampler_names`]), its help and error texts, the default samplers of
+//! `acdf report` and `acdf render`, building ([`make_sampler`]) and loading
+//! ([`load_sampler`]) derive. The adaptive family's names come from the
+//! adaptive plug-in's own table of simplifiers
+//! ([`SIMPLIFIERS`](acdf_adaptive::simplify::SIMPLIFIERS)).
 //!
-//! Why a `macro_rules!` match and not `enum_dispatch`: `enum_dispatch` must
-//! see the trait's definition, and `BxdfSampler` lives in acdf-core, which we
-//! do not change. A local mirror trait with `#[enum_dispatch]` would need a
-//! blanket `impl<T: BxdfSampler> Mirror for T` to cover the plug-ins, and that
-//! blanket impl collides (coherence) with the generated `impl Mirror for
-//! AnySampler` as soon as `AnySampler` itself implements `BxdfSampler`, which
-//! is the whole point. The macro below writes the same static dispatch (one
-//! `match` per method, no vtable, no allocation), the `From` conversions, and
-//! keeps the list of variants in one place.
+//! The operations the registry needs beyond sampling (building every table,
+//! the resolution label, the material a table was built for, the mean kept
+//! vertices, saving) are the local trait [`SamplerOps`], dispatched over
+//! [`AnySampler`] by `enum_dispatch`. The `BxdfSampler` impl of
+//! [`AnySampler`] cannot be: `enum_dispatch` must see the trait's
+//! definition, and `BxdfSampler` lives in acdf-core; a local mirror trait
+//! would need a blanket impl over every `BxdfSampler`, which collides
+//! (coherence) with `AnySampler`'s own `BxdfSampler` impl. The
+//! `any_sampler!` macro writes that dispatch instead (one `match` per
+//! method, no vtable), from the same list of variants.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -18,14 +25,14 @@ use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 use acdf_core::{BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
 use acdf_rgl::RglSampler;
-use acdf_tabulated::persist;
+use acdf_tabulated::persist::{self, PersistError};
 use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
 use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
+use enum_dispatch::enum_dispatch;
 
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::spec::{SamplerSpec, SimplifierName};
-
 /// Options shared by the tabulated samplers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SamplerOptions {
@@ -51,18 +58,96 @@ impl Default for SamplerOptions {
     }
 }
 
+/// What the registry does with a sampler beyond sampling; every method has
+/// the answer of a sampler without tables as its default.
+#[enum_dispatch]
+pub trait SamplerOps {
+    /// Build every table now (in parallel) rather than on first use, so that
+    /// `storage_bytes` reports the whole sampler and timings exclude
+    /// building.
+    fn build_all(&self) -> Result<()> {
+        Ok(())
+    }
+
+    /// A short description of the tables: the resolution θ_o×φ_o×θ_h×φ_h
+    /// for the uniform sampler; for adaptive ones θ_o×φ_o× the mean kept
+    /// marginal vertices × the mean kept conditional vertices (over the
+    /// slices built so far); `-` for samplers without tables.
+    fn resolution_label(&self) -> String {
+        "-".to_string()
+    }
+
+    /// The name of the material a tabulated sampler was built for (for a
+    /// sampler loaded from a file, the name recorded in it); `None` for
+    /// samplers without tables.
+    fn material_name(&self) -> Option<&str> {
+        None
+    }
+
+    /// For adaptive samplers, (mean marginal vertices, mean conditional
+    /// vertices) over the slices built so far.
+    fn mean_vertices(&self) -> Option<(f64, f64)> {
+        None
+    }
+
+    /// Build every table and write the sampler file; `None` for samplers
+    /// that have no file format.
+    fn write_file(&self, _path: &Path) -> Option<std::result::Result<(), PersistError>> {
+        None
+    }
+}
+
+impl SamplerOps for CosineSampler {}
+
+impl SamplerOps for RglSampler {
+    fn resolution_label(&self) -> String {
+        let (a, b) = self.brdf().grid_size();
+        format!("{a}x{b} grid")
+    }
+}
+
+impl SamplerOps for UniformBrdfSampler {
+    fn build_all(&self) -> Result<()> {
+        Ok(TabulatedBrdfSampler::build_all(self)?)
+    }
+    fn resolution_label(&self) -> String {
+        self.resolution().to_string()
+    }
+    fn material_name(&self) -> Option<&str> {
+        Some(self.brdf().name())
+    }
+    fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
+        Some(self.save(path))
+    }
+}
+
+impl SamplerOps for AdaptiveBrdfSampler {
+    fn build_all(&self) -> Result<()> {
+        Ok(TabulatedBrdfSampler::build_all(self)?)
+    }
+    fn resolution_label(&self) -> String {
+        let r = self.resolution();
+        let (m, c) = average_resolution(self);
+        format!("{}x{}x{m:.1}x{c:.1}", r.theta_o, r.phi_o)
+    }
+    fn material_name(&self) -> Option<&str> {
+        Some(self.brdf().name())
+    }
+    fn mean_vertices(&self) -> Option<(f64, f64)> {
+        Some(average_resolution(self))
+    }
+    fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
+        Some(self.save(path))
+    }
+}
+
 macro_rules! any_sampler {
     ($($(#[$doc:meta])* $variant:ident($ty:ty)),+ $(,)?) => {
         /// One of acdf's samplers, dispatched statically.
+        #[enum_dispatch(SamplerOps)]
         pub enum AnySampler {
             $($(#[$doc])* $variant($ty)),+
         }
-
-        $(impl From<$ty> for AnySampler {
-            fn from(s: $ty) -> Self {
-                AnySampler::$variant(s)
-            }
-        })+
 
         impl BxdfSampler for AnySampler {
             fn name(&self) -> &str {
@@ -106,63 +191,185 @@ any_sampler! {
     Rgl(RglSampler),
 }
 
-impl AnySampler {
-    /// Build every table now (in parallel) rather than on first use, so that
-    /// `storage_bytes` reports the whole sampler and timings exclude
-    /// building.
-    pub fn build_all(&self) -> Result<()> {
-        match self {
-            AnySampler::Cosine(_) | AnySampler::Rgl(_) => Ok(()),
-            AnySampler::Uniform(s) => Ok(s.build_all()?),
-            AnySampler::Adaptive(s) => Ok(s.build_all()?),
-        }
-    }
-
-    /// A short description of the tables: the resolution θ_o×φ_o×θ_h×φ_h
-    /// for the uniform sampler; for adaptive ones θ_o×φ_o× the mean kept
-    /// marginal vertices × the mean kept conditional vertices (over the
-    /// slices built so far); `-` for samplers without tables.
-    pub fn resolution_label(&self) -> String {
-        match self {
-            AnySampler::Cosine(_) => "-".to_string(),
-            AnySampler::Rgl(s) => {
-                let (a, b) = s.brdf().grid_size();
-                format!("{a}x{b} grid")
-            }
-            AnySampler::Uniform(s) => s.resolution().to_string(),
-            AnySampler::Adaptive(s) => {
-                let r = s.resolution();
-                let (m, c) = average_resolution(s);
-                format!("{}x{}x{m:.1}x{c:.1}", r.theta_o, r.phi_o)
-            }
-        }
-    }
-
-    /// The name of the material a tabulated sampler was built for (for a
-    /// sampler loaded from a file, the name recorded in it); `None` for
-    /// samplers without tables.
-    pub fn material_name(&self) -> Option<&str> {
-        match self {
-            AnySampler::Uniform(s) => Some(s.brdf().name()),
-            AnySampler::Adaptive(s) => Some(s.brdf().name()),
-            AnySampler::Cosine(_) | AnySampler::Rgl(_) => None,
-        }
-    }
-
-    /// For adaptive samplers, (mean marginal vertices, mean conditional
-    /// vertices) over the slices built so far.
-    pub fn mean_vertices(&self) -> Option<(f64, f64)> {
-        match self {
-            AnySampler::Adaptive(s) => Some(average_resolution(s)),
-            _ => None,
-        }
-    }
-}
-
 impl std::fmt::Debug for AnySampler {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "AnySampler({})", self.name())
     }
+}
+
+/// One family of samplers: one line of [`SAMPLERS`].
+#[derive(Debug)]
+pub struct SamplerFamily {
+    /// The name on the command line (`--sampler NAME`).
+    pub name: &'static str,
+    /// One line for help texts.
+    pub description: &'static str,
+    /// Whether the family takes a simplifier, `NAME:SIMPLIFIER`, from the
+    /// adaptive plug-in's table (the plain `NAME` is its first).
+    pub simplifiers: bool,
+    /// The family's place in `acdf report`'s default set, `None` for none;
+    /// a family with simplifiers brings those marked `in_report` in their
+    /// table.
+    pub report_rank: Option<u8>,
+    /// Whether `acdf render` compares it by default (in the table's order;
+    /// with its first simplifier).
+    pub in_render: bool,
+    /// Whether it can be used with a material (`None`: with every one), and
+    /// why not.
+    pub requires: Option<Requirement>,
+    /// The kind recorded in its sampler files, for a family that can be
+    /// saved ([`save_sampler`], [`load_sampler`]).
+    pub file_kind: Option<&'static str>,
+    /// Build it for a material.
+    pub build: fn(&SamplerSpec, &Material, &SamplerOptions) -> Result<AnySampler>,
+    /// Read a sampler file of `file_kind`.
+    pub load: Option<LoadFn>,
+}
+
+/// Reads the bytes of a sampler file into a sampler.
+pub type LoadFn = fn(&[u8]) -> std::result::Result<AnySampler, PersistError>;
+
+/// A condition a material must meet for a family's samplers.
+#[derive(Debug)]
+pub struct Requirement {
+    /// Whether `material` meets it.
+    pub met: fn(&Material) -> bool,
+    /// Why the sampler cannot be used otherwise.
+    pub reason: &'static str,
+    /// The materials it serves, for the help texts of default sets.
+    pub serves: &'static str,
+}
+
+/// The name of the family with simplifiers.
+pub const ADAPTIVE: &str = "adaptive";
+
+/// Every sampler family, in the order of help texts and of `acdf render`'s
+/// default set.
+pub static SAMPLERS: &[SamplerFamily] = &[
+    SamplerFamily {
+        name: "cosine",
+        description: "cosine-weighted hemisphere, no tables",
+        simplifiers: false,
+        report_rank: Some(2),
+        in_render: true,
+        requires: None,
+        file_kind: None,
+        build: |_, _, _| Ok(CosineSampler.into()),
+        load: None,
+    },
+    SamplerFamily {
+        name: "uniform",
+        description: "uniformly tabulated CDFs",
+        simplifiers: false,
+        report_rank: Some(0),
+        in_render: true,
+        requires: None,
+        file_kind: Some("uniform"),
+        build: |_, m, o| {
+            let sampler =
+                UniformBrdfSampler::new(m.brdf.clone(), tables(m, o), PiecewiseConstantBuilder)?;
+            Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())
+        },
+        load: Some(|bytes| Ok(UniformBrdfSampler::from_bytes(bytes)?.into())),
+    },
+    SamplerFamily {
+        name: ADAPTIVE,
+        description: "curve-simplified tabulated CDFs, adaptive:SIMPLIFIER",
+        simplifiers: true,
+        report_rank: Some(1),
+        in_render: true,
+        requires: None,
+        file_kind: Some("adaptive"),
+        build: |spec, m, o| {
+            let simplifier = spec
+                .simplifier()
+                .unwrap_or_else(SimplifierName::default_simplifier);
+            let builder = AdaptiveBuilder::by_name(simplifier.short(), o.tolerance)?;
+            let sampler = TabulatedBrdfSampler::new(m.brdf.clone(), tables(m, o), builder)?;
+            Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())
+        },
+        load: Some(|bytes| Ok(AdaptiveBrdfSampler::from_bytes(bytes)?.into())),
+    },
+    SamplerFamily {
+        name: "rgl",
+        description: "the RGL .bsdf file's own sampler, for .bsdf materials only",
+        simplifiers: false,
+        report_rank: Some(3),
+        in_render: true,
+        requires: Some(Requirement {
+            met: |m| m.rgl.is_some(),
+            reason: "the rgl sampler needs an RGL .bsdf material",
+            serves: ".bsdf materials",
+        }),
+        file_kind: None,
+        build: |spec, m, _| match &m.rgl {
+            Some(rgl) => Ok(RglSampler::new(rgl.clone()).into()),
+            None => Err(incompatible(spec, m)),
+        },
+        load: None,
+    },
+];
+
+/// The family called `name`.
+pub fn family(name: &str) -> Option<&'static SamplerFamily> {
+    SAMPLERS.iter().find(|f| f.name == name)
+}
+
+/// Every sampler name the command line accepts, in the table's order: each
+/// family's name, and for the family with simplifiers also
+/// `NAME:SIMPLIFIER` for every simplifier.
+pub fn sampler_names() -> Vec<String> {
+    named(false).into_iter().map(|(name, _)| name).collect()
+}
+
+/// The names of the samplers that can be saved to a file (`acdf build`).
+pub fn saved_sampler_names() -> Vec<String> {
+    named(true).into_iter().map(|(name, _)| name).collect()
+}
+
+/// (name, one-line description) of every sampler name, or of those with a
+/// file format.
+fn named(saved_only: bool) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    for f in SAMPLERS
+        .iter()
+        .filter(|f| !saved_only || f.file_kind.is_some())
+    {
+        if f.simplifiers {
+            let first = SimplifierName::default_simplifier();
+            out.push((
+                f.name.to_string(),
+                format!("{}; alone, {}:{first}", f.description, f.name),
+            ));
+            out.extend(
+                acdf_adaptive::simplify::SIMPLIFIERS
+                    .iter()
+                    .map(|e| (format!("{}:{}", f.name, e.name), e.description.to_string())),
+            );
+        } else {
+            out.push((f.name.to_string(), f.description.to_string()));
+        }
+    }
+    out
+}
+
+/// The short help of a `--sampler` option (`-h`): the names, from the
+/// tables.
+pub fn sampler_help(saved_only: bool) -> String {
+    let names: Vec<String> = named(saved_only).into_iter().map(|(n, _)| n).collect();
+    format!("One of {}", names.join(", "))
+}
+
+/// The long help of a `--sampler` option (`--help`): one name per line with
+/// its description, from the tables.
+pub fn sampler_long_help(saved_only: bool) -> String {
+    let named = named(saved_only);
+    let width = named.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
+    let lines: Vec<String> = named
+        .iter()
+        .map(|(n, d)| format!("  {n:width$}  {d}"))
+        .collect();
+    format!("One of:\n{}", lines.join("\n"))
 }
 
 /// Build the sampler named `name` (see [`SamplerSpec`]) for `material`.
@@ -181,32 +388,27 @@ pub fn make_sampler_spec(
     material: &Material,
     options: &SamplerOptions,
 ) -> Result<AnySampler> {
-    let brdf = material.brdf.clone();
-    let resolution = effective_resolution(material, options.resolution);
-    Ok(match spec {
-        SamplerSpec::Cosine => CosineSampler.into(),
-        SamplerSpec::Uniform => {
-            UniformBrdfSampler::new(brdf, resolution, PiecewiseConstantBuilder)?
-                .with_cosine_mix(options.cosine_mix)?
-                .into()
-        }
-        SamplerSpec::Adaptive(simplifier) => {
-            let builder = AdaptiveBuilder::by_name(simplifier.short(), options.tolerance)?;
-            TabulatedBrdfSampler::new(brdf, resolution, builder)?
-                .with_cosine_mix(options.cosine_mix)?
-                .into()
-        }
-        SamplerSpec::Rgl => match &material.rgl {
-            Some(rgl) => RglSampler::new(rgl.clone()).into(),
-            None => {
-                return Err(Error::Incompatible {
-                    sampler: "rgl".into(),
-                    material: material.spec.to_string(),
-                    reason: "the rgl sampler needs an RGL .bsdf material".into(),
-                })
-            }
-        },
-    })
+    let family = spec.family();
+    if !usable(family, material) {
+        return Err(incompatible(&spec, material));
+    }
+    (family.build)(&spec, material, options)
+}
+
+/// The error for a sampler whose family's requirement `material` does not
+/// meet.
+fn incompatible(spec: &SamplerSpec, material: &Material) -> Error {
+    let reason = spec.family().requires.as_ref().map_or("", |r| r.reason);
+    Error::Incompatible {
+        sampler: spec.to_string(),
+        material: material.spec.to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// The resolution of a tabulated sampler of `material` at `options`.
+fn tables(material: &Material, options: &SamplerOptions) -> Resolution {
+    effective_resolution(material, options.resolution)
 }
 
 /// The resolution a tabulated sampler of `material` uses: `requested`, except
@@ -223,44 +425,119 @@ pub fn effective_resolution(material: &Material, requested: Resolution) -> Resol
     }
 }
 
-/// The samplers a report compares for `material`: uniform, the four adaptive
-/// simplifiers, cosine, and `rgl` for RGL materials.
-pub fn report_samplers(material: &Material) -> Vec<SamplerSpec> {
-    let mut out = vec![SamplerSpec::Uniform];
-    out.extend(
-        SimplifierName::ALL
-            .iter()
-            .map(|&s| SamplerSpec::Adaptive(s)),
-    );
-    out.push(SamplerSpec::Cosine);
-    if material.rgl.is_some() {
-        out.push(SamplerSpec::Rgl);
+/// Whether `family` can be used with `material`.
+fn usable(family: &SamplerFamily, material: &Material) -> bool {
+    match &family.requires {
+        Some(r) => (r.met)(material),
+        None => true,
     }
-    out
 }
 
-/// Build every table of a tabulated sampler (uniform or adaptive) and save
-/// it to `path` in the sampler file format (`acdf_tabulated::persist`), so a
-/// renderer can load it without rebuilding. Samplers without tables have
-/// nothing to save and give [`Error::Incompatible`].
+/// The families of `acdf report`'s default set, in rank order.
+fn report_families() -> Vec<&'static SamplerFamily> {
+    let mut families: Vec<&SamplerFamily> = SAMPLERS
+        .iter()
+        .filter(|f| f.report_rank.is_some())
+        .collect();
+    families.sort_by_key(|f| f.report_rank);
+    families
+}
+
+/// A family's samplers in `acdf report`'s default set: for the family with
+/// simplifiers, those marked `in_report` in the adaptive plug-in's table.
+fn report_specs(family: &'static SamplerFamily) -> Vec<SamplerSpec> {
+    if family.simplifiers {
+        SimplifierName::in_report()
+            .map(SamplerSpec::adaptive)
+            .collect()
+    } else {
+        vec![SamplerSpec::of_family(family)]
+    }
+}
+
+/// The families of `acdf render`'s default set, in the table's order.
+fn render_families() -> Vec<&'static SamplerFamily> {
+    SAMPLERS.iter().filter(|f| f.in_render).collect()
+}
+
+/// The samplers a report compares for `material` by default: the families
+/// with a `report_rank`, in rank order (uniform, the adaptive simplifiers
+/// marked `in_report`, cosine, and `rgl` for RGL materials).
+pub fn report_samplers(material: &Material) -> Vec<SamplerSpec> {
+    report_families()
+        .into_iter()
+        .filter(|f| usable(f, material))
+        .flat_map(report_specs)
+        .collect()
+}
+
+/// The samplers `acdf render` compares for `material` by default: the
+/// families marked `in_render`, in the table's order (cosine, uniform,
+/// adaptive, and `rgl` for RGL materials).
+pub fn render_samplers(material: &Material) -> Vec<SamplerSpec> {
+    render_families()
+        .into_iter()
+        .filter(|f| usable(f, material))
+        .map(SamplerSpec::of_family)
+        .collect()
+}
+
+/// `acdf report`'s default set for help texts, e.g. `uniform, adaptive:dp,
+/// ..., rgl (for .bsdf materials)`.
+pub fn report_default_help() -> String {
+    describe_set(report_families(), report_specs)
+}
+
+/// `acdf render`'s default set for help texts.
+pub fn render_default_help() -> String {
+    describe_set(render_families(), |f| vec![SamplerSpec::of_family(f)])
+}
+
+fn describe_set(
+    families: Vec<&'static SamplerFamily>,
+    specs: impl Fn(&'static SamplerFamily) -> Vec<SamplerSpec>,
+) -> String {
+    let mut parts = Vec::new();
+    for f in families {
+        for spec in specs(f) {
+            parts.push(match &f.requires {
+                Some(r) => format!("{spec} (for {})", r.serves),
+                None => spec.to_string(),
+            });
+        }
+    }
+    parts.join(", ")
+}
+
+/// Build every table of a tabulated sampler and save it to `path` in the
+/// sampler file format (`acdf_tabulated::persist`), so a renderer can load it
+/// without rebuilding. Samplers without tables have nothing to save and give
+/// [`Error::Incompatible`].
 pub fn save_sampler(sampler: &AnySampler, path: &Path) -> Result<()> {
-    let file_error = |source| Error::SamplerFile {
-        path: path.to_path_buf(),
-        source,
-    };
-    match sampler {
-        AnySampler::Uniform(s) => s.save(path).map_err(file_error),
-        AnySampler::Adaptive(s) => s.save(path).map_err(file_error),
-        AnySampler::Cosine(_) | AnySampler::Rgl(_) => Err(Error::Incompatible {
+    match sampler.write_file(path) {
+        Some(written) => written.map_err(|source| Error::SamplerFile {
+            path: path.to_path_buf(),
+            source,
+        }),
+        None => Err(Error::Incompatible {
             sampler: sampler.name().to_string(),
             material: "-".into(),
-            reason: "only tabulated samplers (uniform, adaptive) are saved to files".into(),
+            reason: format!(
+                "only tabulated samplers ({}) are saved to files",
+                file_kinds().join(", ")
+            ),
         }),
     }
 }
 
-/// Load a sampler saved by [`save_sampler`]; the family recorded in the file
-/// picks the type.
+/// The kinds of sampler files, from the table.
+fn file_kinds() -> Vec<&'static str> {
+    SAMPLERS.iter().filter_map(|f| f.file_kind).collect()
+}
+
+/// Load a sampler saved by [`save_sampler`]; the kind recorded in the file
+/// picks the family, and a kind no family reads is
+/// [`Error::UnknownSamplerKind`].
 pub fn load_sampler(path: &Path) -> Result<AnySampler> {
     let file_error = |source| Error::SamplerFile {
         path: path.to_path_buf(),
@@ -268,14 +545,16 @@ pub fn load_sampler(path: &Path) -> Result<AnySampler> {
     };
     let bytes = persist::read_file(path).map_err(file_error)?;
     let kind = persist::peek_kind(&bytes).map_err(file_error)?;
-    match kind.as_str() {
-        "adaptive" => Ok(AdaptiveBrdfSampler::from_bytes(&bytes)
-            .map_err(file_error)?
-            .into()),
-        _ => Ok(UniformBrdfSampler::from_bytes(&bytes)
-            .map_err(file_error)?
-            .into()),
-    }
+    let load = SAMPLERS
+        .iter()
+        .find(|f| f.file_kind == Some(kind.as_str()))
+        .and_then(|f| f.load)
+        .ok_or_else(|| Error::UnknownSamplerKind {
+            path: path.to_path_buf(),
+            kind: kind.clone(),
+            known: file_kinds().join(", "),
+        })?;
+    load(&bytes).map_err(file_error)
 }
 
 /// Shared ownership of a built sampler, for experiments that hand it to
@@ -298,15 +577,11 @@ mod tests {
     fn every_name_builds_the_sampler_it_names() {
         let m = nickel();
         let options = SamplerOptions::default();
-        for name in [
-            "cosine",
-            "uniform",
-            "adaptive:dp",
-            "adaptive:vw",
-            "adaptive:rw",
-            "adaptive:optimal",
-        ] {
-            let s = make_sampler(name, &m, &options).unwrap();
+        for name in sampler_names()
+            .into_iter()
+            .filter(|n| n != "rgl" && n != ADAPTIVE)
+        {
+            let s = make_sampler(&name, &m, &options).unwrap();
             assert_eq!(s.name(), name);
             let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
             let d = s.sample(wo, Vec2::new(0.3, 0.6)).unwrap();
@@ -320,10 +595,60 @@ mod tests {
             make_sampler("rgl", &m, &options),
             Err(Error::Incompatible { .. })
         ));
-        assert!(matches!(
-            make_sampler("nope", &m, &options),
-            Err(Error::UnknownSampler(_))
-        ));
+        let unknown = make_sampler("nope", &m, &options).unwrap_err();
+        assert!(matches!(unknown, Error::UnknownSampler { .. }));
+        for name in sampler_names() {
+            assert!(
+                unknown.to_string().contains(&name),
+                "{unknown} lacks {name}"
+            );
+        }
+    }
+
+    /// The default sets of `acdf report` and `acdf render`, in their order.
+    #[test]
+    fn default_sets_keep_their_order() {
+        let names = |specs: Vec<SamplerSpec>| -> Vec<String> {
+            specs.iter().map(ToString::to_string).collect()
+        };
+        let m = nickel();
+        assert_eq!(
+            names(report_samplers(&m)),
+            [
+                "uniform",
+                "adaptive:dp",
+                "adaptive:vw",
+                "adaptive:rw",
+                "adaptive:optimal",
+                "adaptive:chi2",
+                "cosine"
+            ]
+        );
+        assert_eq!(
+            names(render_samplers(&m)),
+            ["cosine", "uniform", "adaptive:dp"]
+        );
+    }
+
+    /// A sampler file of a kind no family reads is a typed error naming the
+    /// kind found and the kinds known, not a misread.
+    #[test]
+    fn unknown_file_kinds_are_typed_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mystery.acdfs");
+        let mut body = persist::ByteWriter::new();
+        body.string("mystery");
+        persist::write_atomic(&path, &persist::seal(&body.into_bytes())).unwrap();
+        match load_sampler(&path) {
+            Err(e @ Error::UnknownSamplerKind { .. }) => {
+                let text = e.to_string();
+                assert!(text.contains("`mystery`"), "{text}");
+                for kind in file_kinds() {
+                    assert!(text.contains(kind), "{text} lacks {kind}");
+                }
+            }
+            other => panic!("expected UnknownSamplerKind, got {other:?}"),
+        }
     }
 
     /// Building every slice makes an adaptive sampler report its storage,

@@ -12,7 +12,7 @@ use crate::efficiency::{measure_efficiencies, Efficiency, EfficiencyConfig};
 use crate::env::Environment;
 use crate::error::Result;
 use crate::material::Material;
-use crate::registry::{make_sampler_spec, report_samplers, SamplerOptions};
+use crate::registry::{make_sampler_spec, SamplerOps, SamplerOptions};
 use crate::spec::SamplerSpec;
 
 /// One (material, sampler) line of the report.
@@ -67,20 +67,22 @@ struct Measured {
     efficiency: Efficiency,
 }
 
-/// Measure every sampler of [`report_samplers`] on `material`. `progress` is
+/// Measure each sampler of `samplers` on `material` (the default set is
+/// [`report_samplers`](crate::registry::report_samplers)). `progress` is
 /// called with each sampler's name before it is built, and with "timing"
 /// before the samplers' timed passes, which run in turns
 /// ([`measure_efficiencies`]) so that their times are compared under the
 /// same conditions.
 pub fn report_material(
     material: &Material,
+    samplers: &[SamplerSpec],
     env: &dyn Environment,
     options: &SamplerOptions,
     config: &EfficiencyConfig,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<ReportRow>> {
     let mut built = Vec::new();
-    for spec in report_samplers(material) {
+    for &spec in samplers {
         progress(&spec.to_string());
         let sampler = make_sampler_spec(spec, material, options)?;
         let start = Instant::now();
@@ -105,7 +107,7 @@ pub fn report_material(
             efficiency,
         })
         .collect();
-    let uniform = measured.iter().find(|m| m.spec == SamplerSpec::Uniform);
+    let uniform = measured.iter().find(|m| m.spec == SamplerSpec::UNIFORM);
     let uniform_storage = uniform.map(|m| m.storage_bytes as f64);
     let uniform_eff = uniform.map(|m| m.efficiency.efficiency);
     let label = material.label();

@@ -1,13 +1,19 @@
 //! The names of materials and samplers on the command line. This is a
 //! contract other tools rely on: `builtin:NAME`, `nbrdf:NAME`, a path ending
-//! in `.binary` (MERL) or `.bsdf` (RGL) for materials; `cosine`, `uniform`,
-//! `adaptive[:dp|vw|rw|optimal]` and `rgl` for samplers.
+//! in `.binary` (MERL) or `.bsdf` (RGL) for materials; for samplers, the
+//! families of the registry's table ([`SAMPLERS`](crate::registry::SAMPLERS):
+//! `cosine`, `uniform`, `adaptive`, `rgl`), the adaptive one as `adaptive`
+//! or `adaptive:SIMPLIFIER` with a simplifier of the adaptive plug-in's table
+//! ([`SIMPLIFIERS`]). [`sampler_names`] lists them all.
 
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
 
+use acdf_adaptive::simplify::{simplifier_entry, SimplifierEntry, SIMPLIFIERS, SIMPLIFIER_NAMES};
+
 use crate::error::Error;
+use crate::registry::{family, sampler_names, SamplerFamily, ADAPTIVE};
 
 /// The names of the analytic built-in materials.
 pub const BUILTIN_MATERIALS: [&str; 5] = [
@@ -96,83 +102,145 @@ impl MaterialSpec {
     }
 }
 
-/// The curve simplifiers of the adaptive sampler, by their command-line
-/// names.
+/// A simplifier of the adaptive sampler, by its command-line name: a checked
+/// handle to an entry of the adaptive plug-in's table
+/// ([`acdf_adaptive::simplify::SIMPLIFIERS`]), the one list of
+/// simplifier names from which parsing, help texts and error messages
+/// derive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum SimplifierName {
-    /// `dp`: Douglas-Peucker, the default.
-    DouglasPeucker,
-    /// `vw`: Visvalingam-Whyatt.
-    VisvalingamWhyatt,
-    /// `rw`: Reumann-Witkam.
-    ReumannWitkam,
-    /// `optimal`: the fewest vertices within the tolerance.
-    Optimal,
-    /// `chi2`: the fewest vertices within a chi-square divergence budget,
-    /// the variance the simplification adds.
-    ChiSquare,
-}
+pub struct SimplifierName(&'static str);
 
 impl SimplifierName {
-    /// All simplifiers, in the order of reports.
-    pub const ALL: [SimplifierName; 5] = [
-        SimplifierName::DouglasPeucker,
-        SimplifierName::VisvalingamWhyatt,
-        SimplifierName::ReumannWitkam,
-        SimplifierName::Optimal,
-        SimplifierName::ChiSquare,
-    ];
+    /// Every simplifier, in the table's order.
+    pub fn all() -> impl Iterator<Item = SimplifierName> {
+        SIMPLIFIERS.iter().map(|e| SimplifierName(e.name))
+    }
 
-    /// `dp`, `vw`, `rw`, `optimal` or `chi2`.
+    /// The simplifiers `acdf report` compares by default (marked `in_report`
+    /// in the table).
+    pub fn in_report() -> impl Iterator<Item = SimplifierName> {
+        SIMPLIFIERS
+            .iter()
+            .filter(|e| e.in_report)
+            .map(|e| SimplifierName(e.name))
+    }
+
+    /// The simplifier of the plain name `adaptive`: the table's first.
+    pub fn default_simplifier() -> SimplifierName {
+        SimplifierName(SIMPLIFIERS[0].name)
+    }
+
+    /// The command-line name: `dp`, `vw`, `chi2`, ...
     pub fn short(self) -> &'static str {
-        match self {
-            SimplifierName::DouglasPeucker => "dp",
-            SimplifierName::VisvalingamWhyatt => "vw",
-            SimplifierName::ReumannWitkam => "rw",
-            SimplifierName::Optimal => "optimal",
-            SimplifierName::ChiSquare => "chi2",
-        }
+        self.0
+    }
+
+    /// The table entry: description, default set, constructor.
+    pub fn entry(self) -> &'static SimplifierEntry {
+        simplifier_entry(self.0).expect("a SimplifierName names a table entry")
+    }
+
+    /// The simplifier called `name`, if the table has one.
+    pub fn find(name: &str) -> Option<SimplifierName> {
+        simplifier_entry(name).map(|e| SimplifierName(e.name))
+    }
+
+    /// The names of every simplifier, comma-separated, for help and error
+    /// texts.
+    pub fn list() -> String {
+        SIMPLIFIER_NAMES.join(", ")
     }
 }
 
-/// A sampler as named on the command line.
+impl fmt::Display for SimplifierName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.0)
+    }
+}
+
+/// A sampler as named on the command line: a family of the registry's table
+/// ([`SAMPLERS`](crate::registry::SAMPLERS)) and, for the adaptive family,
+/// its simplifier. Parsing and display derive from the two tables.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum SamplerSpec {
-    /// `cosine`.
-    Cosine,
-    /// `uniform`: the uniformly tabulated CDFs.
-    Uniform,
-    /// `adaptive` (Douglas-Peucker) or `adaptive:SIMPLIFIER`.
-    Adaptive(SimplifierName),
-    /// `rgl`: the `.bsdf` file's own sampler.
-    Rgl,
+pub struct SamplerSpec {
+    family: &'static str,
+    simplifier: Option<SimplifierName>,
+}
+
+impl SamplerSpec {
+    /// `uniform`: the reference of the relative columns of reports.
+    pub const UNIFORM: SamplerSpec = SamplerSpec::plain("uniform");
+    /// `cosine`: the table-free reference.
+    pub const COSINE: SamplerSpec = SamplerSpec::plain("cosine");
+
+    const fn plain(family: &'static str) -> Self {
+        SamplerSpec {
+            family,
+            simplifier: None,
+        }
+    }
+
+    /// The adaptive sampler with `simplifier`.
+    pub fn adaptive(simplifier: SimplifierName) -> Self {
+        SamplerSpec {
+            family: ADAPTIVE,
+            simplifier: Some(simplifier),
+        }
+    }
+
+    /// The spec of a family of the table: with the family's first simplifier
+    /// when it takes one.
+    pub fn of_family(family: &'static SamplerFamily) -> Self {
+        SamplerSpec {
+            family: family.name,
+            simplifier: family.simplifiers.then(SimplifierName::default_simplifier),
+        }
+    }
+
+    /// The sampler family's entry in the registry table.
+    pub fn family(&self) -> &'static SamplerFamily {
+        family(self.family).expect("a SamplerSpec names a registry family")
+    }
+
+    /// The simplifier of an adaptive sampler.
+    pub fn simplifier(&self) -> Option<SimplifierName> {
+        self.simplifier
+    }
 }
 
 impl FromStr for SamplerSpec {
     type Err = Error;
 
+    /// A family's name, or for a family with simplifiers `FAMILY` (its first
+    /// simplifier) or `FAMILY:SIMPLIFIER`.
     fn from_str(s: &str) -> Result<Self, Error> {
-        Ok(match s {
-            "cosine" => SamplerSpec::Cosine,
-            "uniform" => SamplerSpec::Uniform,
-            "adaptive" | "adaptive:dp" => SamplerSpec::Adaptive(SimplifierName::DouglasPeucker),
-            "adaptive:vw" => SamplerSpec::Adaptive(SimplifierName::VisvalingamWhyatt),
-            "adaptive:rw" => SamplerSpec::Adaptive(SimplifierName::ReumannWitkam),
-            "adaptive:optimal" => SamplerSpec::Adaptive(SimplifierName::Optimal),
-            "adaptive:chi2" => SamplerSpec::Adaptive(SimplifierName::ChiSquare),
-            "rgl" => SamplerSpec::Rgl,
-            _ => return Err(Error::UnknownSampler(s.to_string())),
+        let (head, tail) = match s.split_once(':') {
+            Some((h, t)) => (h, Some(t)),
+            None => (s, None),
+        };
+        let unknown = || Error::UnknownSampler {
+            name: s.to_string(),
+            known: sampler_names().join(", "),
+        };
+        let family = family(head).ok_or_else(unknown)?;
+        let simplifier = match (family.simplifiers, tail) {
+            (false, None) => None,
+            (false, Some(_)) => return Err(unknown()),
+            (true, None) => Some(SimplifierName::default_simplifier()),
+            (true, Some(t)) => Some(SimplifierName::find(t).ok_or_else(unknown)?),
+        };
+        Ok(SamplerSpec {
+            family: family.name,
+            simplifier,
         })
     }
 }
 
 impl fmt::Display for SamplerSpec {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            SamplerSpec::Cosine => f.write_str("cosine"),
-            SamplerSpec::Uniform => f.write_str("uniform"),
-            SamplerSpec::Adaptive(s) => write!(f, "adaptive:{}", s.short()),
-            SamplerSpec::Rgl => f.write_str("rgl"),
+        match self.simplifier {
+            Some(s) => write!(f, "{}:{s}", self.family),
+            None => f.write_str(self.family),
         }
     }
 }
@@ -227,22 +295,24 @@ mod tests {
 
     #[test]
     fn sampler_names_round_trip() {
-        for name in [
-            "cosine",
-            "uniform",
-            "adaptive:dp",
-            "adaptive:vw",
-            "adaptive:rw",
-            "adaptive:optimal",
-            "rgl",
-        ] {
-            assert_eq!(name.parse::<SamplerSpec>().unwrap().to_string(), name);
+        for name in sampler_names() {
+            let spec: SamplerSpec = name.parse().unwrap();
+            // `adaptive` alone prints as the simplifier it stands for.
+            if spec.family().simplifiers && !name.contains(':') {
+                continue;
+            }
+            assert_eq!(spec.to_string(), name);
         }
         assert_eq!(
             "adaptive".parse::<SamplerSpec>().unwrap(),
-            SamplerSpec::Adaptive(SimplifierName::DouglasPeucker)
+            SamplerSpec::adaptive(SimplifierName::find("dp").unwrap())
         );
-        assert!("adaptive:xx".parse::<SamplerSpec>().is_err());
+        for bad in ["adaptive:xx", "uniform:dp", "", "adaptive:"] {
+            assert!(matches!(
+                bad.parse::<SamplerSpec>(),
+                Err(Error::UnknownSampler { .. })
+            ));
+        }
     }
 
     #[test]

@@ -15,7 +15,7 @@ use crate::env::Environment;
 use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::plot::{Figure, Panel, Series};
-use crate::registry::{make_sampler_spec, AnySampler, SamplerOptions};
+use crate::registry::{make_sampler_spec, AnySampler, SamplerOps, SamplerOptions};
 use crate::spec::{SamplerSpec, SimplifierName};
 
 /// The default tolerances of a sweep: the simplifier's default tolerance
@@ -32,8 +32,8 @@ pub const TOLERANCE_FACTORS: [f64; 8] = [
 ];
 
 /// The default tolerance of a simplifier, as its plug-in defines it.
-pub fn default_tolerance(simplifier: SimplifierName) -> Result<f64> {
-    Ok(acdf_adaptive::simplifier_by_name(simplifier.short())?.default_tolerance())
+pub fn default_tolerance(simplifier: SimplifierName) -> f64 {
+    (simplifier.entry().make)().default_tolerance()
 }
 
 /// One measured point: one sampler at one tolerance.
@@ -95,10 +95,7 @@ fn build(spec: SamplerSpec, material: &Material, options: &SamplerOptions) -> Re
     sampler.build_all()?;
     Ok(Built {
         spec,
-        tolerance: match spec {
-            SamplerSpec::Adaptive(_) => options.tolerance,
-            _ => None,
-        },
+        tolerance: spec.simplifier().and(options.tolerance),
         sampler,
     })
 }
@@ -121,7 +118,7 @@ pub fn run_sweep(
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<SweepPoint>> {
     let mut built = Vec::new();
-    for spec in [SamplerSpec::Uniform, SamplerSpec::Cosine] {
+    for spec in [SamplerSpec::UNIFORM, SamplerSpec::COSINE] {
         progress(&spec.to_string());
         built.push(build(spec, material, base)?);
     }
@@ -136,7 +133,7 @@ pub fn run_sweep(
                 ..*base
             };
             built.push(build(
-                SamplerSpec::Adaptive(simplifier),
+                SamplerSpec::adaptive(simplifier),
                 material,
                 &options,
             )?);

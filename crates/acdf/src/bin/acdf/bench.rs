@@ -580,3 +580,56 @@ pub fn format_bench(report: &BenchReport) -> String {
     }
     s
 }
+
+/// The arguments of `acdf bench`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Built-in material to measure.
+    #[arg(long, value_name = "NAME", default_value = "nickel")]
+    material: String,
+    /// Uniform pairs per timed run.
+    #[arg(long, default_value_t = 1_000_000)]
+    samples: usize,
+    /// Runs per figure; the best is reported.
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    /// Resolution θ_o×φ_o×θ_h×φ_h of the timed 4D builds (default the
+    /// paper's 32x16x256x32).
+    #[arg(long, value_name = "RES", default_value = "32x16x256x32")]
+    build_resolution: String,
+    /// Also write the results as JSON (fields documented on
+    /// `BenchReport`).
+    #[arg(long, value_name = "FILE")]
+    json: Option<std::path::PathBuf>,
+}
+
+/// Measure, print the table, and write the JSON if asked.
+pub fn run(a: Args) -> Result<()> {
+    use std::io::Write;
+    let build_resolution: Resolution =
+        a.build_resolution
+            .parse()
+            .map_err(|e: acdf_core::Error| Error::InvalidArgument {
+                what: "build resolution",
+                value: a.build_resolution.clone(),
+                reason: e.to_string(),
+            })?;
+    let config = BenchConfig {
+        material: a.material,
+        samples: a.samples,
+        repeats: a.repeats,
+        build_resolution,
+        ..BenchConfig::default()
+    };
+    let pb = crate::common::spinner("measuring");
+    let report = run_bench(&config);
+    pb.finish_and_clear();
+    let report = report?;
+    let mut out = crate::common::stdout();
+    write!(out, "{}", format_bench(&report))?;
+    out.flush()?;
+    if let Some(path) = &a.json {
+        crate::common::write_json(path, &report)?;
+    }
+    Ok(())
+}
