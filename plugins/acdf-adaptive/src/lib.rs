@@ -6,11 +6,9 @@
 //!
 //! The pieces:
 //! - [`simplify`]: the [`Simplifier`] plug-ins, each stating which error its
-//!   tolerance bounds: `dp` (Douglas-Peucker), `vw` (Visvalingam-Whyatt),
-//!   `rw` (Reumann-Witkam), `optimal` (fewest vertices) on the vertical error
-//!   of the CDF; `chi2` (few vertices under a chi-square budget, the one that
-//!   compresses most at equal efficiency); the classic `dp-perp` and
-//!   `vw-area`;
+//!   tolerance bounds, and their table [`simplify::SIMPLIFIERS`] (command-line
+//!   name, description, default tolerance), from which every list of names
+//!   in acdf is derived;
 //! - [`AdaptiveCdf1D`] and [`AdaptiveCdf2D`]: piecewise-linear CDFs through the
 //!   kept vertices (piecewise-constant densities), implementing acdf-core's
 //!   `Distribution1D` and `Distribution2D`;
