@@ -24,13 +24,8 @@
 //! (the results table) times several samplers in turns, one pass of each
 //! per round, so that a change of the machine's speed during the run (its
 //! clock, other tenants) reaches them all alike and the ratios of their
-//! times hold: on a 2-core machine whose clock was measured between 3.75
-//! and 4.12 GHz over an evening, the uniform sampler's time on nickel in
-//! three consecutive `acdf report` runs was 108, 111 and 160 ns per sample
-//! when each sampler was timed alone after the one before, and 108 to 112
-//! in six runs with the passes in turns (three with three passes, three
-//! with five), every relative efficiency then within 3% from run to run
-//! (at most 2.05 to 2.12).
+//! times hold. Timed one after another instead, a sampler timed while the
+//! clock drops is charged for it.
 //! The environment lookup is not included: it is the same for every
 //! sampler.
 //!

@@ -98,16 +98,15 @@ pub struct BenchReport {
     /// a chain of dependent integer additions ([`clock_ghz`]); `null` off
     /// x86-64. One call of `sample` is a chain of dependent steps of a
     /// nearly fixed number of cycles, so its rate follows the clock, which
-    /// on the 2-core Zen 5 machine read from 3.28 to 3.94 GHz on different
-    /// days; the table printed beside the JSON gives each call in cycles.
+    /// varies between runs on a shared machine; the table printed beside the
+    /// JSON gives each call in cycles.
     pub clock_ghz_start: Option<f64>,
     pub clock_ghz_end: Option<f64>,
     /// The processor the figures were measured on: its model name (Linux
     /// `/proc/cpuinfo`; `unknown` elsewhere), then its family and model
     /// numbers and the vector extensions the batch paths can use, e.g.
-    /// `AMD EPYC (family 26, model 2), avx2, avx512f`. The same binary gave rates
-    /// twice as high on one machine kind as on another, so a figure means
-    /// little without it.
+    /// `AMD EPYC (family 26, model 2), avx2, avx512f`: a rate means little
+    /// without the processor it was measured on.
     pub cpu: String,
     /// The 2D distributions of one slice (256 θ_h × 32 φ_h).
     pub distributions: Vec<DistributionBench>,
