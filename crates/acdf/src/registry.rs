@@ -141,8 +141,11 @@ impl SamplerOps for AdaptiveBrdfSampler {
     }
 }
 
+// Every variant takes a doc comment (`+`, not `*`): without an attribute
+// the variant's tokens reach `enum_dispatch` with the spans of this macro,
+// and the binding it generates for the variant's value no longer resolves.
 macro_rules! any_sampler {
-    ($($(#[$doc:meta])* $variant:ident($ty:ty)),+ $(,)?) => {
+    ($($(#[$doc:meta])+ $variant:ident($ty:ty)),+ $(,)?) => {
         /// One of acdf's samplers, dispatched statically.
         #[enum_dispatch(SamplerOps)]
         pub enum AnySampler {
