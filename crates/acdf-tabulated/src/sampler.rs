@@ -476,13 +476,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// 16.5 to 11 M/s, and `pdf` from 28 to 16 (built-in nickel, a scratch
     /// loop of the bench's calls, best of 10 runs of 10^6, on a Zen 5
     /// machine).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn sample_avx2(
+    fn sample_avx2(
         &self,
+        _: acdf_core::cpu::Avx2,
         wo_x: f32,
         wo_y: f32,
         wo_z: f32,
@@ -494,13 +492,14 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
 
     /// [`pdf_one`](Self::pdf_one) compiled for AVX2, wo and wi in
     /// registers (see [`sample_avx2`](Self::sample_avx2)).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
+    // The six coordinates travel in registers (see `sample_avx2`), beside
+    // the token.
+    #[allow(clippy::too_many_arguments)]
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn pdf_avx2(
+    fn pdf_avx2(
         &self,
+        _: acdf_core::cpu::Avx2,
         wo_x: f32,
         wo_y: f32,
         wo_z: f32,
@@ -851,9 +850,10 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
     /// reported density is the mixed pdf at the returned wi.
     fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
         #[cfg(target_arch = "x86_64")]
-        if batch::has_avx2() {
-            // SAFETY: the CPU has just been found to support AVX2 and FMA.
-            return unsafe { self.sample_avx2(wo.x, wo.y, wo.z, u.x, u.y) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+            // requirement of the function's target features.
+            return unsafe { self.sample_avx2(cpu, wo.x, wo.y, wo.z, u.x, u.y) };
         }
         self.sample_portable(wo, u)
     }
@@ -862,9 +862,10 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
     /// or below the horizon.
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         #[cfg(target_arch = "x86_64")]
-        if batch::has_avx2() {
-            // SAFETY: the CPU has just been found to support AVX2 and FMA.
-            return unsafe { self.pdf_avx2(wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+            // requirement of the function's target features.
+            return unsafe { self.pdf_avx2(cpu, wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
         }
         self.pdf_portable(wo, wi)
     }

@@ -192,11 +192,13 @@ impl Distribution1D for AdaptiveCdf1D {
     /// eight at a time in scalar stages.
     fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // curve fits the lanes.
-            unsafe { self.sample_batch_gather(u, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if let Some(run) = self.lane_list() {
+                // SAFETY: the token proves the CPU has AVX2, the one
+                // requirement of the function's target features.
+                unsafe { self.sample_batch_gather(cpu, run, u, out) };
+                return;
+            }
         }
         self.sample_batch_lanes(u, out);
     }
@@ -829,11 +831,13 @@ impl Distribution2D for AdaptiveCdf2D {
     /// elsewhere eight at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // distribution fits the lanes.
-            unsafe { self.sample_batch_gather::<false>(u, out, Vec2::ZERO, &mut []) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the
+                // distribution fits the lanes.
+                unsafe { self.sample_batch_gather::<false>(cpu, u, out, Vec2::ZERO, &mut []) };
+                return;
+            }
         }
         self.sample_batch_lanes::<false>(u, out, Vec2::ZERO, &mut []);
     }
@@ -843,11 +847,13 @@ impl Distribution2D for AdaptiveCdf2D {
     /// (`dist/gather.rs`), elsewhere one at a time.
     fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // distribution fits the lanes.
-            unsafe { self.pdf_batch_gather(p, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the
+                // distribution fits the lanes.
+                unsafe { self.pdf_batch_gather(cpu, p, out) };
+                return;
+            }
         }
         for (o, &p) in out.iter_mut().zip(p) {
             *o = self.pdf(p);
@@ -968,11 +974,13 @@ impl SliceDistribution for AdaptiveCdf2D {
         let len = u.len().min(out.len()).min(same.len());
         let (u, out, same) = (&u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // distribution fits the lanes.
-            unsafe { self.sample_batch_gather::<true>(u, out, margin, same) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the
+                // distribution fits the lanes.
+                unsafe { self.sample_batch_gather::<true>(cpu, u, out, margin, same) };
+                return;
+            }
         }
         self.sample_batch_lanes::<true>(u, out, margin, same);
     }
@@ -997,9 +1005,10 @@ impl SliceDistribution for AdaptiveCdf2D {
         let len = dists.len().min(u.len()).min(out.len()).min(same.len());
         let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather(dists, u, margin, out, same) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::sample_each_gather(cpu, dists, u, margin, out, same) };
             return;
         }
         Self::sample_each_lanes(dists, u, margin, out, same);
@@ -1016,9 +1025,10 @@ impl SliceDistribution for AdaptiveCdf2D {
         let len = dists.len().min(p.len()).min(out.len());
         let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::pdf_each_gather(dists, p, out) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::pdf_each_gather(cpu, dists, p, out) };
             return;
         }
         Self::pdf_each_lanes(dists, p, out);

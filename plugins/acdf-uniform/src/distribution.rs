@@ -379,11 +379,13 @@ impl Distribution1D for PiecewiseConstant1D {
     /// dependence, so the out-of-order core overlaps consecutive draws).
     fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // CDF fits the lanes.
-            unsafe { self.sample_batch_gather(u, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if let Some(cdf) = self.lane_list() {
+                // SAFETY: the token proves the CPU has AVX2, the one
+                // requirement of the function's target features.
+                unsafe { self.sample_batch_gather(cpu, cdf, u, out) };
+                return;
+            }
         }
         for (o, &u) in out.iter_mut().zip(u) {
             *o = self.sample(u);
@@ -674,11 +676,13 @@ impl Distribution2D for PiecewiseConstant2D {
     /// (`distribution/gather.rs`), elsewhere one at a time.
     fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_pdf_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // table fits the lanes.
-            unsafe { self.pdf_batch_gather(p, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_pdf_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the table
+                // fits the lanes.
+                unsafe { self.pdf_batch_gather(cpu, p, out) };
+                return;
+            }
         }
         for (o, &p) in out.iter_mut().zip(p) {
             *o = self.pdf(p);
@@ -721,11 +725,13 @@ impl Distribution2D for PiecewiseConstant2D {
     /// elsewhere sixteen at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // table fits the lanes.
-            unsafe { self.sample_batch_gather(u, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the table
+                // fits the lanes.
+                unsafe { self.sample_batch_gather(cpu, u, out) };
+                return;
+            }
         }
         self.sample_batch_lanes(u, out);
     }
@@ -851,9 +857,10 @@ impl SliceDistribution for PiecewiseConstant2D {
         let len = dists.len().min(u.len()).min(out.len());
         let (dists, u, out) = (&dists[..len], &u[..len], &mut out[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather::<false>(dists, u, Vec2::ZERO, out, &mut []) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::sample_each_gather::<false>(cpu, dists, u, Vec2::ZERO, out, &mut []) };
             return;
         }
         Self::sample_each_lanes(dists, u, out);
@@ -881,9 +888,10 @@ impl SliceDistribution for PiecewiseConstant2D {
         let len = dists.len().min(u.len()).min(out.len()).min(same.len());
         let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather::<true>(dists, u, margin, out, same) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::sample_each_gather::<true>(cpu, dists, u, margin, out, same) };
             return;
         }
         Self::sample_each_lanes(dists, u, out);
@@ -897,9 +905,10 @@ impl SliceDistribution for PiecewiseConstant2D {
         let len = dists.len().min(p.len()).min(out.len());
         let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::pdf_each_gather(dists, p, out) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::pdf_each_gather(cpu, dists, p, out) };
             return;
         }
         for ((o, d), &p) in out.iter_mut().zip(dists).zip(p) {
