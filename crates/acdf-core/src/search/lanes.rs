@@ -291,6 +291,8 @@ impl<'a> Shared<'a> {
 }
 
 impl Source for Shared<'_> {
+    /// # Safety
+    /// As [`Source::gather`]: every index inside its lane's array.
     #[inline(always)]
     unsafe fn gather(&self, _: Avx2, _g: usize, index: __m256i) -> __m256 {
         // SAFETY: the token proves the CPU has AVX2; every index is inside
@@ -299,6 +301,8 @@ impl Source for Shared<'_> {
         unsafe { _mm256_i32gather_ps::<4>(self.entries, index) }
     }
 
+    /// # Safety
+    /// As [`Source::gather_pairs`]: every index inside its lane's array.
     #[inline(always)]
     unsafe fn gather_pairs(&self, _: Avx2, _g: usize, index: __m256i) -> (__m256, __m256) {
         // Unsigned: the indices are never negative, and a u32 widens to an
@@ -372,6 +376,8 @@ impl<'a> PerLane<'a> {
 }
 
 impl Source for PerLane<'_> {
+    /// # Safety
+    /// As [`Source::gather`]: every index inside its lane's array.
     #[inline(always)]
     unsafe fn gather(&self, cpu: Avx2, g: usize, index: __m256i) -> __m256 {
         let (low, high) = self.addresses(cpu, g, index);
@@ -391,6 +397,8 @@ impl Source for PerLane<'_> {
         }
     }
 
+    /// # Safety
+    /// As [`Source::gather_pairs`]: every index inside its lane's array.
     #[inline(always)]
     unsafe fn gather_pairs(&self, cpu: Avx2, g: usize, index: __m256i) -> (__m256, __m256) {
         let (low, high) = self.addresses(cpu, g, index);
