@@ -206,14 +206,12 @@ pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
 /// Why a table of 64ths rather than a reduction to the nearest quarter turn
 /// with polynomials of degree 9 and 8 in the rest: the table entry is read
 /// while d is being formed, and the short polynomials and the turn make a
-/// shorter chain, which every one-at-a-time `sample` waits for. Measured in
-/// a loop of the calls `acdf bench` times (built-in nickel, wo changing
-/// every call, each figure the best of 10 runs of 10^6 calls, the two forms
-/// alternated and the best three of eight runs averaged), the table form
-/// makes `sample` 3% faster for the uniform sampler and 7% faster for
-/// `adaptive:dp`. The batch forms, which pick the entries in their lanes
-/// ([`sin_cos_turns_each`]), are 1 to 4% slower with it than with the
-/// polynomials in SIMD (same loop, six alternating runs).
+/// shorter chain, which every one-at-a-time `sample` waits for. Measured on
+/// the calls `acdf bench` times (built-in nickel, wo changing every call),
+/// the table form makes `sample` a few percent faster for both tabulated
+/// samplers, and the batch forms, which pick the entries in their lanes
+/// ([`sin_cos_turns_each`]), slightly slower than polynomials in SIMD
+/// would: `sample` one call at a time is the path that matters here.
 #[inline(always)]
 fn sin_cos_steps(steps: f32) -> (f32, f32) {
     let shifted = steps + ROUND_TO_INTEGER;
@@ -337,11 +335,8 @@ impl QuarterLanes {
 ///
 /// Why registers rather than memory: reading the entries from the table as
 /// eight 8-byte loads per eight angles, with the indices stored and
-/// reloaded, made the batch forms slower and less steady. In a loop of the
-/// calls `acdf bench` times (built-in nickel, six alternating runs, mean of
-/// the best three), uniform `sample_each` was 2% and `adaptive:dp`
-/// `sample_batch` 7% slower at their best, and 3% and 20% slower in the
-/// median.
+/// reloaded, made the batch forms (`sample_each`, `sample_batch` of the
+/// tabulated samplers, as `acdf bench` times them) slower and less steady.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn turn_entries_lanes(

@@ -168,10 +168,9 @@ fn at_or_below_mask_sse(window: &[f32; WINDOW], v: f32) -> u32 {
 /// A tabulated sampler's `sample` compares three such windows on every
 /// call (the θ_o cell and, for the uniform tabulation, the φ_h row; for the
 /// adaptive one, both curves' guide windows), all on the chain of dependent
-/// steps. One call at a time, against the SSE form: uniform 20.2 to 21.5
-/// M/s and `adaptive:dp` 18.8 to 20.5 (built-in nickel, wo changing every
-/// call, a scratch loop of the bench's calls, best of 10 runs of 10^6,
-/// medians of six alternating runs on a Zen 5 machine).
+/// steps, so the shorter form makes `sample` one call at a time measurably
+/// faster on processors that have AVX-512 (some 6% for the uniform and 9%
+/// for `adaptive:dp` on the built-in nickel, as `acdf bench` times `sample`).
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and BW.
