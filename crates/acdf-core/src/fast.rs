@@ -206,14 +206,12 @@ pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
 /// Why a table of 64ths rather than a reduction to the nearest quarter turn
 /// with polynomials of degree 9 and 8 in the rest: the table entry is read
 /// while d is being formed, and the short polynomials and the turn make a
-/// shorter chain, which every one-at-a-time `sample` waits for. Measured in
-/// a loop of the calls `acdf bench` times (built-in nickel, wo changing
-/// every call, each figure the best of 10 runs of 10^6 calls, the two forms
-/// alternated and the best three of eight runs averaged), the table form
-/// makes `sample` 3% faster for the uniform sampler and 7% faster for
-/// `adaptive:dp`. The batch forms, which pick the entries in their lanes
-/// ([`sin_cos_turns_each`]), are 1 to 4% slower with it than with the
-/// polynomials in SIMD (same loop, six alternating runs).
+/// shorter chain, which every one-at-a-time `sample` waits for. Measured on
+/// the calls `acdf bench` times (built-in nickel, wo changing every call),
+/// the table form makes `sample` a few percent faster for both tabulated
+/// samplers, and the batch forms, which pick the entries in their lanes
+/// ([`sin_cos_turns_each`]), slightly slower than polynomials in SIMD
+/// would: `sample` one call at a time is the path that matters here.
 #[inline(always)]
 fn sin_cos_steps(steps: f32) -> (f32, f32) {
     let shifted = steps + ROUND_TO_INTEGER;
@@ -248,9 +246,10 @@ fn sin_cos_steps_each(scale: f32, angles: &[f32], sin: &mut [f32], cos: &mut [f3
     let n = angles.len().min(sin.len()).min(cos.len());
     let mut done = 0;
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has just been found to support AVX2.
-        done = unsafe { sin_cos_steps_avx2(scale, &angles[..n], sin, cos) };
+    if let Some(cpu) = crate::cpu::avx2() {
+        // SAFETY: the token proves the CPU has AVX2, the one requirement of
+        // the function's target features.
+        done = unsafe { sin_cos_steps_avx2(cpu, scale, &angles[..n], sin, cos) };
     }
     for i in done..n {
         (sin[i], cos[i]) = sin_cos_steps(angles[i] * scale);
@@ -259,14 +258,12 @@ fn sin_cos_steps_each(scale: f32, angles: &[f32], sin: &mut [f32], cos: &mut [f3
 
 /// [`sin_cos_steps`] of `scale · angles[i]` in eight lanes at a time, the
 /// same IEEE operations in the same order; returns how many it did (a
-/// multiple of eight), leaving the rest to the caller.
-///
-/// # Safety
-/// The CPU must support AVX2; `sin` and `cos` are at least as long as
-/// `angles`.
+/// multiple of eight), leaving the rest to the caller. Panics if `sin` or
+/// `cos` is shorter than that.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn sin_cos_steps_avx2(
+fn sin_cos_steps_avx2(
+    cpu: crate::cpu::Avx2,
     scale: f32,
     angles: &[f32],
     sin: &mut [f32],
@@ -276,13 +273,15 @@ unsafe fn sin_cos_steps_avx2(
     let n = angles.len() / 8 * 8;
     assert!(sin.len() >= n && cos.len() >= n);
     let set = _mm256_set1_ps;
-    let quarter = QuarterLanes::load();
+    let quarter = QuarterLanes::load(cpu);
     for i in (0..n).step_by(8) {
-        let steps = _mm256_mul_ps(_mm256_loadu_ps(angles.as_ptr().add(i)), set(scale));
+        // SAFETY: i + 8 <= n <= angles.len().
+        let angles = unsafe { _mm256_loadu_ps(angles.as_ptr().add(i)) };
+        let steps = _mm256_mul_ps(angles, set(scale));
         let shifted = _mm256_add_ps(steps, set(ROUND_TO_INTEGER));
         let k = _mm256_sub_ps(shifted, set(ROUND_TO_INTEGER));
         let d = _mm256_sub_ps(steps, k);
-        let (sin_k, cos_k) = turn_entries_lanes(_mm256_castps_si256(shifted), &quarter);
+        let (sin_k, cos_k) = turn_entries_lanes(cpu, _mm256_castps_si256(shifted), &quarter);
         let d2 = _mm256_mul_ps(d, d);
         let sin_d = _mm256_mul_ps(d, _mm256_add_ps(set(SIN_1), _mm256_mul_ps(d2, set(SIN_3))));
         let cos_d = _mm256_add_ps(
@@ -291,8 +290,12 @@ unsafe fn sin_cos_steps_avx2(
         );
         let s = _mm256_add_ps(_mm256_mul_ps(sin_k, cos_d), _mm256_mul_ps(cos_k, sin_d));
         let c = _mm256_sub_ps(_mm256_mul_ps(cos_k, cos_d), _mm256_mul_ps(sin_k, sin_d));
-        _mm256_storeu_ps(sin.as_mut_ptr().add(i), s);
-        _mm256_storeu_ps(cos.as_mut_ptr().add(i), c);
+        // SAFETY: i + 8 <= n, and both outputs hold n floats (checked
+        // above).
+        unsafe {
+            _mm256_storeu_ps(sin.as_mut_ptr().add(i), s);
+            _mm256_storeu_ps(cos.as_mut_ptr().add(i), c);
+        }
     }
     n
 }
@@ -309,11 +312,13 @@ struct QuarterLanes {
 #[cfg(target_arch = "x86_64")]
 impl QuarterLanes {
     #[inline(always)]
-    unsafe fn load() -> Self {
+    fn load(_: crate::cpu::Avx2) -> Self {
         use std::arch::x86_64::*;
         let column = |c: usize, from: usize| {
             let v: [f32; 8] = std::array::from_fn(|l| TURN_TABLE[from + l][c]);
-            _mm256_loadu_ps(v.as_ptr())
+            // SAFETY: the token proves the CPU has AVX2; the load reads the
+            // eight floats of `v`.
+            unsafe { _mm256_loadu_ps(v.as_ptr()) }
         };
         QuarterLanes {
             sin: [column(0, 0), column(0, 8)],
@@ -330,44 +335,45 @@ impl QuarterLanes {
 ///
 /// Why registers rather than memory: reading the entries from the table as
 /// eight 8-byte loads per eight angles, with the indices stored and
-/// reloaded, made the batch forms slower and less steady. In a loop of the
-/// calls `acdf bench` times (built-in nickel, six alternating runs, mean of
-/// the best three), uniform `sample_each` was 2% and `adaptive:dp`
-/// `sample_batch` 7% slower at their best, and 3% and 20% slower in the
-/// median.
+/// reloaded, made the batch forms (`sample_each`, `sample_batch` of the
+/// tabulated samplers, as `acdf bench` times them) slower and less steady.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn turn_entries_lanes(
+fn turn_entries_lanes(
+    _: crate::cpu::Avx2,
     shifted: std::arch::x86_64::__m256i,
     quarter: &QuarterLanes,
 ) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
     use std::arch::x86_64::*;
-    let r = _mm256_and_si256(shifted, _mm256_set1_epi32(15));
-    let q = _mm256_srli_epi32::<4>(shifted);
-    // Entries 8..16 where bit 3 of r is set.
-    let high = _mm256_castsi256_ps(_mm256_slli_epi32::<28>(r));
-    let pick = |v: &[__m256; 2]| {
-        _mm256_blendv_ps(
-            _mm256_permutevar8x32_ps(v[0], r),
-            _mm256_permutevar8x32_ps(v[1], r),
-            high,
+    // SAFETY: the token proves the CPU has AVX2; register arithmetic only.
+    unsafe {
+        let r = _mm256_and_si256(shifted, _mm256_set1_epi32(15));
+        let q = _mm256_srli_epi32::<4>(shifted);
+        // Entries 8..16 where bit 3 of r is set.
+        let high = _mm256_castsi256_ps(_mm256_slli_epi32::<28>(r));
+        let pick = |v: &[__m256; 2]| {
+            _mm256_blendv_ps(
+                _mm256_permutevar8x32_ps(v[0], r),
+                _mm256_permutevar8x32_ps(v[1], r),
+                high,
+            )
+        };
+        let (s, c) = (pick(&quarter.sin), pick(&quarter.cos));
+        let odd = _mm256_castsi256_ps(_mm256_slli_epi32::<31>(q));
+        let (sin, cos) = (_mm256_blendv_ps(s, c, odd), _mm256_blendv_ps(c, s, odd));
+        // The sine is negated for q = 2, 3 (bit 1 of q), the cosine for q = 1,
+        // 2 (bit 1 of q + 1).
+        let two = _mm256_set1_epi32(2);
+        let sin_sign = _mm256_slli_epi32::<30>(_mm256_and_si256(q, two));
+        let cos_sign = _mm256_slli_epi32::<30>(_mm256_and_si256(
+            _mm256_add_epi32(q, _mm256_set1_epi32(1)),
+            two,
+        ));
+        (
+            _mm256_xor_ps(sin, _mm256_castsi256_ps(sin_sign)),
+            _mm256_xor_ps(cos, _mm256_castsi256_ps(cos_sign)),
         )
-    };
-    let (s, c) = (pick(&quarter.sin), pick(&quarter.cos));
-    let odd = _mm256_castsi256_ps(_mm256_slli_epi32::<31>(q));
-    let (sin, cos) = (_mm256_blendv_ps(s, c, odd), _mm256_blendv_ps(c, s, odd));
-    // The sine is negated for q = 2, 3 (bit 1 of q), the cosine for q = 1,
-    // 2 (bit 1 of q + 1).
-    let two = _mm256_set1_epi32(2);
-    let sin_sign = _mm256_slli_epi32::<30>(_mm256_and_si256(q, two));
-    let cos_sign = _mm256_slli_epi32::<30>(_mm256_and_si256(
-        _mm256_add_epi32(q, _mm256_set1_epi32(1)),
-        two,
-    ));
-    (
-        _mm256_xor_ps(sin, _mm256_castsi256_ps(sin_sign)),
-        _mm256_xor_ps(cos, _mm256_castsi256_ps(cos_sign)),
-    )
+    }
 }
 
 #[cfg(test)]

@@ -5,7 +5,8 @@
 //! Rusinkiewicz half/difference coordinates; the warps shared by several
 //! samplers; the hot-path helpers every sampler uses (polynomial
 //! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
-//! their SIMD-lane form for batches in `search::lanes`);
+//! their SIMD-lane form for batches in `search::lanes`), with the one place
+//! that detects the CPU features they choose their code by (`cpu`);
 //! and the one error type. It holds no sampler and no data format,
 //! so that plug-ins and material readers depend only on this small crate and
 //! never on each other.
@@ -19,7 +20,10 @@
 //! - uniform random numbers are sanitised in exactly one place,
 //!   [`distribution::clamp_unit`].
 
+#![deny(unsafe_op_in_unsafe_fn)]
+
 pub mod brdf;
+pub mod cpu;
 pub mod distribution;
 pub mod error;
 pub mod fast;

@@ -62,6 +62,87 @@ use std::sync::{Arc, OnceLock};
 ///   `sampler_batch.rs`), with results bit-identical to `sample` and `pdf`.
 ///   With cosine mixing, `sample_batch`, `sample_each` and `pdf_each` take
 ///   the one-at-a-time path.
+///
+/// # Examples
+///
+/// A sampler family is a [`SliceBuilder`] and the [`SliceDistribution`] it
+/// builds. The plug-ins `acdf-uniform` and `acdf-adaptive` provide the
+/// real ones (`UniformBrdfSampler`, `AdaptiveBrdfSampler`); this crate
+/// depends on no plug-in, so the example brings the smallest family of its
+/// own, a distribution uniform over the half-vector square, and samples a
+/// Lambertian BRDF with it:
+///
+/// ```
+/// use acdf_core::{
+///     Brdf, BxdfSampler, Distribution2D, Result, Rgb, Sample2D, Vec2, Vec3, clamp_unit,
+/// };
+/// use acdf_tabulated::{Resolution, SliceBuilder, SliceDistribution, TabulatedBrdfSampler};
+/// use std::sync::Arc;
+///
+/// /// Uniform over [0, 1)^2, whatever the table.
+/// struct Flat;
+///
+/// impl Distribution2D for Flat {
+///     fn sample(&self, u: Vec2) -> Sample2D {
+///         Sample2D { p: Vec2::new(clamp_unit(u.x), clamp_unit(u.y)), pdf: 1.0 }
+///     }
+///     fn pdf(&self, p: Vec2) -> f32 {
+///         let inside = (0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y);
+///         if inside { 1.0 } else { 0.0 }
+///     }
+///     fn invert(&self, p: Vec2) -> Vec2 {
+///         p.clamp(Vec2::ZERO, Vec2::ONE)
+///     }
+///     fn integral(&self) -> f64 {
+///         1.0
+///     }
+///     fn storage_bytes(&self) -> usize {
+///         0
+///     }
+/// }
+///
+/// // The sampler's fast paths are optional: the defaults are correct.
+/// impl SliceDistribution for Flat {}
+///
+/// struct FlatBuilder;
+///
+/// impl SliceBuilder for FlatBuilder {
+///     type Dist = Flat;
+///     fn name(&self) -> String {
+///         "flat".into()
+///     }
+///     fn build(&self, _values: &[f32], _n_phi_h: usize, _n_theta_h: usize) -> Result<Flat> {
+///         Ok(Flat)
+///     }
+/// }
+///
+/// struct Lambert;
+///
+/// impl Brdf for Lambert {
+///     fn name(&self) -> &str {
+///         "lambert"
+///     }
+///     fn eval(&self, wo: Vec3, wi: Vec3) -> Rgb {
+///         let above = wo.z > 0.0 && wi.z > 0.0;
+///         Rgb::splat(if above { 0.5 / std::f32::consts::PI } else { 0.0 })
+///     }
+///     fn is_isotropic(&self) -> bool {
+///         true
+///     }
+/// }
+///
+/// let sampler = TabulatedBrdfSampler::new(Arc::new(Lambert), Resolution::ISOTROPIC, FlatBuilder)?;
+/// assert_eq!(sampler.name(), "flat");
+/// let wo = Vec3::new(0.6, 0.0, 0.8);
+/// let s = sampler.sample(wo, Vec2::new(0.3, 0.2)).expect("a direction above the horizon");
+/// assert!(s.wi.z > 0.0 && s.pdf > 0.0);
+/// // `sample` reports the density `pdf` gives its direction.
+/// let pdf = sampler.pdf(wo, s.wi);
+/// assert!((pdf - s.pdf).abs() <= 1e-4 * pdf);
+/// // Below the horizon there is nothing to sample.
+/// assert_eq!(sampler.pdf(wo, Vec3::new(0.0, 0.6, -0.8)), 0.0);
+/// # Ok::<(), acdf_core::Error>(())
+/// ```
 pub struct TabulatedBrdfSampler<B: SliceBuilder> {
     brdf: Arc<dyn Brdf>,
     resolution: Resolution,
@@ -316,13 +397,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// 0.035 where θ_h >= 1/512). Otherwise, and for tabulations finer than
     /// the margins allow, the density is recomputed exactly as `pdf` does.
     ///
-    /// The bound on (wo·h) sin θ_h was 1/128 (and the density agreed to
-    /// 2e-5): on the specular built-in nickel 6.4% of the draws fell below
-    /// it and took the recomputation, against 0.5% below 1/512, and
-    /// `sample` one call at a time went from 19.2 to 20.4 M/s (uniform) and
-    /// from 17.9 to 19.3 (`adaptive:dp`; a scratch loop of the bench's
-    /// calls, best of 10 runs of 10^6, medians of eight alternating runs
-    /// on a Zen 5 machine).
+    /// Why 1/512 for (wo·h) sin θ_h: a bound of 1/128 keeps the density
+    /// within 2e-5, but on the specular built-in nickel 6.4% of the draws
+    /// fall below it and take the recomputation, against 0.5% below 1/512,
+    /// which makes `sample` one call at a time about 7% faster (as `acdf
+    /// bench` times it) while staying inside the battery's 1e-4.
     #[inline(always)]
     fn finish_table_draw(
         &self,
@@ -462,27 +541,23 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// operations (no fused multiply-adds are formed), in three-operand
     /// instructions with blends for the selects. The common path of a
     /// table draw is inlined (`#[inline(always)]` down to the builder's
-    /// draw and box test) so that all of it is compiled so: callgrind
-    /// counted 668 instructions per uniform `sample` on the built-in
-    /// nickel, wo changing every call, against 767 when the draw was an
-    /// out-of-line baseline function.
+    /// draw and box test) so that all of it is compiled so: an out-of-line
+    /// baseline draw costs about 15% more instructions per uniform `sample`
+    /// (callgrind on `tests/examples/instruction_count.rs`).
     ///
     /// wo and u arrive as five `f32` in registers. Passed as `Vec3` and
     /// `Vec2` they went through the stack, and where the caller stored
     /// them in pieces (8 + 4 bytes) and this function loaded 8 bytes
     /// across both, the load waited for the stores to retire instead of
     /// being forwarded, at the head of the call's chain: with `sample`
-    /// inlined into a loop that pattern took the uniform sampler from
-    /// 16.5 to 11 M/s, and `pdf` from 28 to 16 (built-in nickel, a scratch
-    /// loop of the bench's calls, best of 10 runs of 10^6, on a Zen 5
-    /// machine).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
+    /// inlined into a loop that pattern cost the uniform sampler a third of
+    /// its `sample` rate and nearly half of its `pdf` rate (built-in
+    /// nickel, the calls `acdf bench` times).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn sample_avx2(
+    fn sample_avx2(
         &self,
+        _: acdf_core::cpu::Avx2,
         wo_x: f32,
         wo_y: f32,
         wo_z: f32,
@@ -494,13 +569,14 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
 
     /// [`pdf_one`](Self::pdf_one) compiled for AVX2, wo and wi in
     /// registers (see [`sample_avx2`](Self::sample_avx2)).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
+    // The six coordinates travel in registers (see `sample_avx2`), beside
+    // the token.
+    #[allow(clippy::too_many_arguments)]
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn pdf_avx2(
+    fn pdf_avx2(
         &self,
+        _: acdf_core::cpu::Avx2,
         wo_x: f32,
         wo_y: f32,
         wo_z: f32,
@@ -556,10 +632,9 @@ impl ThetaOCells {
     /// The slice, and so every table read of a draw, waits for this count.
     /// At 32 θ_o cells the bounds fill one window of
     /// [`acdf_core::search::count_window`], compared all at once: `sample`
-    /// one call at a time ran 2 to 5% faster than with the two-level
-    /// [`count_linear`] (uniform 15.8-16.3 to 16.5-16.9 M/s, built-in
-    /// nickel, wo changing every call, best of 10 runs of 10^6 calls, four
-    /// alternating runs on a Zen 5 machine).
+    /// one call at a time measured a few percent faster than with the
+    /// two-level [`count_linear`] (the uniform sampler on the built-in
+    /// nickel, as `acdf bench` times it).
     #[inline(always)]
     fn cell(&self, z: f32) -> usize {
         // -NaN compares false with everything: cell 0.
@@ -666,11 +741,9 @@ impl SliceGeometry {
     /// long before the draw's angles, so that it waits for one product of
     /// sines less than the dot product with the rotated h; the reflection
     /// then needs no normalisation of its own (see [`unit_reflection`]).
-    /// Both shorten the chain that every `sample` ends with: one call at a
-    /// time, uniform 17.1-17.2 to 17.3-18.2 M/s and adaptive:dp 14.7-15.0
-    /// to 15.7-16.1 (built-in nickel, wo changing every call, best of 15
-    /// runs of 10^6, four alternating runs on a Zen 5 machine at about
-    /// 3.65 GHz).
+    /// Both shorten the chain that every `sample` ends with (a few percent
+    /// one call at a time for both tabulated samplers on the built-in
+    /// nickel, as `acdf bench` times `sample`).
     #[inline(always)]
     fn draw_from_angles(&self, wo: Vec3, s: Sample2D, angles: Angles) -> TableDraw {
         let ((sin_h, cos_h), (sin_p, cos_p)) = angles;
@@ -695,10 +768,9 @@ impl SliceGeometry {
     /// The half vector is the sum wi + wo scaled to unit length, but its
     /// angles, two arctangents, need no scale: they are taken from the sum
     /// itself, so they do not wait for the square root and division of the
-    /// normalisation, which only sin θ_h and wo·h use, beside them. `pdf`
-    /// one call at a time went from 23.1-24.6 to 26.3-27.4 M/s (uniform)
-    /// and from 17.6-18.3 to 19.9-21.2 (adaptive:dp; measured as for
-    /// `draw_from_angles`, three alternating runs).
+    /// normalisation, which only sin θ_h and wo·h use, beside them: `pdf`
+    /// one call at a time measured about 10% faster for both tabulated
+    /// samplers (as for `draw_from_angles`).
     #[inline(always)]
     fn coordinates_of(&self, wo: Vec3, wi: Vec3) -> TableCoordinates {
         let sum = wi + wo;
@@ -785,12 +857,10 @@ impl TableCoordinates {
 ///
 /// The full normalisation is computed only on its branch, which depends on
 /// wo alone: a select would make every call wait for its square root and
-/// division. One call at a time, `sample` ran 5 to 8% faster with the
-/// branch than with the select (when the scale still came from |w|²; the
-/// built-in nickel, isotropic resolution, wo changing every call, best of
-/// 10 runs of 10^6 draws, three runs on a Zen 5 machine). In the batch
-/// loops the compiler still turns the branch into a select, so they
-/// vectorise as before.
+/// division; one call at a time, `sample` measured 5 to 8% faster with the
+/// branch than with the select (built-in nickel, isotropic resolution, as
+/// `acdf bench` times `sample`). In the batch loops the compiler still
+/// turns the branch into a select, so they vectorise as before.
 #[inline(always)]
 fn unit_reflection(wo: Vec3, h: Vec3, wo_h: f32) -> Vec3 {
     let w = reflect_given_dot(wo, h, wo_h);
@@ -851,9 +921,10 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
     /// reported density is the mixed pdf at the returned wi.
     fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
         #[cfg(target_arch = "x86_64")]
-        if batch::has_avx2() {
-            // SAFETY: the CPU has just been found to support AVX2 and FMA.
-            return unsafe { self.sample_avx2(wo.x, wo.y, wo.z, u.x, u.y) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+            // requirement of the function's target features.
+            return unsafe { self.sample_avx2(cpu, wo.x, wo.y, wo.z, u.x, u.y) };
         }
         self.sample_portable(wo, u)
     }
@@ -862,9 +933,10 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
     /// or below the horizon.
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         #[cfg(target_arch = "x86_64")]
-        if batch::has_avx2() {
-            // SAFETY: the CPU has just been found to support AVX2 and FMA.
-            return unsafe { self.pdf_avx2(wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+            // requirement of the function's target features.
+            return unsafe { self.pdf_avx2(cpu, wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
         }
         self.pdf_portable(wo, wi)
     }

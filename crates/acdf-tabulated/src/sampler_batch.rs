@@ -27,15 +27,10 @@ use super::{
 };
 use crate::tabulate::HalfMap;
 use crate::{SliceBuilder, SliceDistribution};
+#[cfg(target_arch = "x86_64")]
+use acdf_core::cpu::Avx2;
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{clamp_unit, is_valid_outgoing, BxdfSample, Distribution2D, Sample2D, Vec2, Vec3};
-
-/// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
-#[cfg(target_arch = "x86_64")]
-#[inline]
-pub(super) fn has_avx2() -> bool {
-    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-}
 
 /// The geometry of a chunk of draws, one array per quantity (the layout
 /// the SIMD loop reads and writes).
@@ -202,13 +197,12 @@ fn coordinate_lanes_generic<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut Co
     }
 }
 
-/// [`draw_lanes_generic`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
+/// [`draw_lanes_generic`] compiled for AVX2 (the token proves the CPU
+/// has it).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn draw_lanes_avx2<F: LaneFrames>(
+fn draw_lanes_avx2<F: LaneFrames>(
+    _: Avx2,
     frames: &F,
     drawn: &[Sample2D],
     angles: &AngleLanes,
@@ -217,13 +211,16 @@ unsafe fn draw_lanes_avx2<F: LaneFrames>(
     draw_lanes_generic(frames, drawn, angles, out);
 }
 
-/// [`coordinate_lanes_generic`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
+/// [`coordinate_lanes_generic`] compiled for AVX2 (the token proves the
+/// CPU has it).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn coordinate_lanes_avx2<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut CoordinateLanes) {
+fn coordinate_lanes_avx2<F: LaneFrames>(
+    _: Avx2,
+    frames: &F,
+    wi: &[Vec3],
+    out: &mut CoordinateLanes,
+) {
     coordinate_lanes_generic(frames, wi, out);
 }
 
@@ -231,9 +228,10 @@ unsafe fn coordinate_lanes_avx2<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mu
 fn draw_lanes<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
     let angles = AngleLanes::of(drawn);
     #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: the CPU has just been found to support AVX2 and FMA.
-        unsafe { draw_lanes_avx2(frames, drawn, &angles, out) };
+    if let Some(cpu) = acdf_core::cpu::avx2() {
+        // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+        // requirement of the function's target features.
+        unsafe { draw_lanes_avx2(cpu, frames, drawn, &angles, out) };
         return;
     }
     draw_lanes_generic(frames, drawn, &angles, out);
@@ -242,9 +240,10 @@ fn draw_lanes<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes
 /// The table coordinates of a chunk of incident directions.
 fn coordinate_lanes<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut CoordinateLanes) {
     #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: the CPU has just been found to support AVX2 and FMA.
-        unsafe { coordinate_lanes_avx2(frames, wi, out) };
+    if let Some(cpu) = acdf_core::cpu::avx2() {
+        // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+        // requirement of the function's target features.
+        unsafe { coordinate_lanes_avx2(cpu, frames, wi, out) };
         return;
     }
     coordinate_lanes_generic(frames, wi, out);
@@ -394,13 +393,12 @@ fn outgoing_cells_generic<D>(
     }
 }
 
-/// [`outgoing_cells_generic`] compiled for AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
+/// [`outgoing_cells_generic`] compiled for AVX2 (the token proves the CPU
+/// has it).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn outgoing_cells_avx2<D>(
+fn outgoing_cells_avx2<D>(
+    _: Avx2,
     bounds: &[f32],
     lanes: &mut OutgoingLanes<'_, D>,
     n: usize,
@@ -419,9 +417,10 @@ fn outgoing_cells<D>(
     valid: &mut [bool; BATCH_CHUNK],
 ) {
     #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: the CPU has just been found to support AVX2 and FMA.
-        unsafe { outgoing_cells_avx2(bounds, lanes, n, cells, valid) };
+    if let Some(cpu) = acdf_core::cpu::avx2() {
+        // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+        // requirement of the function's target features.
+        unsafe { outgoing_cells_avx2(cpu, bounds, lanes, n, cells, valid) };
         return;
     }
     outgoing_cells_generic(bounds, lanes, n, cells, valid);

@@ -59,8 +59,8 @@ pub(crate) const CURVE_GUIDE_CELLS: usize = 32;
 /// searched as before: x arrives late, at the end of a chain of
 /// arctangents, and the four-way step's loads do not wait for it while a
 /// guide's do (with a guide of the positions too, adaptive:dp `pdf` one
-/// call at a time fell from 20.5-21.1 to 19.3-20.3 M/s, built-in nickel,
-/// a scratch loop of the bench's calls, three alternating runs).
+/// call at a time measured about 5% slower on the built-in nickel, as
+/// `acdf bench` times it).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub(crate) struct CurveGuide {
     cdfs: Guide,
@@ -325,9 +325,8 @@ pub(crate) fn segment_samples<const N: usize>(
     // x >= x_i already (t >= 0 and x_{i+1} >= x_i), so only the top needs
     // a clamp, and its two bounds are combined before x is known: one select
     // on the chain a single draw waits for instead of three (a 2D draw whose
-    // input waits for the one before took 17.4-17.7 ns instead of 19.0 on
-    // the built-in nickel's middle slice, a scratch loop on a Zen 5
-    // machine).
+    // input waits for the one before measured about 8% faster on the
+    // built-in nickel's middle slice).
     for (x, s) in x.iter_mut().zip(seg) {
         let below_x1 = f32::from_bits(s.x1.to_bits().wrapping_sub(1));
         let top = if below_x1 > ONE_MINUS_EPSILON {

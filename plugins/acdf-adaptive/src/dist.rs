@@ -192,11 +192,13 @@ impl Distribution1D for AdaptiveCdf1D {
     /// eight at a time in scalar stages.
     fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // curve fits the lanes.
-            unsafe { self.sample_batch_gather(u, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if let Some(run) = self.lane_list() {
+                // SAFETY: the token proves the CPU has AVX2, the one
+                // requirement of the function's target features.
+                unsafe { self.sample_batch_gather(cpu, run, u, out) };
+                return;
+            }
         }
         self.sample_batch_lanes(u, out);
     }
@@ -263,6 +265,33 @@ impl AdaptiveCdf1D {
 /// once, reached through the guide for the marginal's u and by a four-way
 /// search for longer lists, see `acdf_core::search`; in batches on AVX2,
 /// binary lifting in SIMD lanes, see `dist/gather.rs`).
+///
+/// # Examples
+///
+/// ```
+/// use acdf_adaptive::{AdaptiveCdf2D, DouglasPeucker};
+/// use acdf_core::{Distribution2D, Sample2D, Vec2};
+///
+/// // 64 rows of 32 cells: a peak on row 10 and column 5 over a floor.
+/// let (nx, ny) = (32, 64);
+/// let table: Vec<f32> = (0..nx * ny)
+///     .map(|k| if k / nx == 10 && k % nx == 5 { 100.0 } else { 1.0 })
+///     .collect();
+/// let simplifier = DouglasPeucker::vertical();
+/// let d = AdaptiveCdf2D::from_values(&table, nx, ny, &simplifier, 1e-3)?;
+/// // Far fewer vertices than the 64 rows: the floor is one straight CDF.
+/// assert!(d.marginal_vertex_count() < 16);
+/// let s = d.sample(Vec2::new(0.3, 0.6));
+/// assert!(s.pdf > 0.0);
+/// // The density a draw reports is the density `pdf` gives its point.
+/// assert_eq!(d.pdf(s.p), s.pdf);
+/// // The batch form gives the same samples, bit for bit.
+/// let u = [Vec2::new(0.3, 0.6), Vec2::new(0.99, 0.01)];
+/// let mut out = [Sample2D::default(); 2];
+/// d.sample_batch(&u, &mut out);
+/// assert_eq!(out[0], s);
+/// # Ok::<(), acdf_core::Error>(())
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct AdaptiveCdf2D {
     /// The marginal's m vertex positions, then its m CDF values.
@@ -350,6 +379,9 @@ impl AdaptiveCdf2D {
         )
     }
 
+    /// Build: the marginal's vertices ([`marginal_vertices`]), the column
+    /// sums of each marginal segment's rows ([`segment_columns`]), then each
+    /// segment's simplified conditional ([`conditional_vertices`]).
     fn build(
         values: &[f32],
         n_x: usize,
@@ -359,146 +391,34 @@ impl AdaptiveCdf2D {
         conditional_tolerance: f64,
         pinned_rows: usize,
     ) -> Result<Self> {
-        const WHAT: &str = "AdaptiveCdf2D";
-        if n_x == 0 || n_y == 0 {
-            return Err(Error::EmptyTable { what: WHAT });
-        }
-        let expected = n_x.checked_mul(n_y).ok_or(Error::InvalidParameter {
-            name: "n_x * n_y",
-            reason: "overflows usize".into(),
-        })?;
-        if values.len() != expected {
-            return Err(Error::SizeMismatch {
-                what: WHAT,
-                expected,
-                got: values.len(),
-            });
-        }
-        validate_table(WHAT, values)?;
-        check_len(WHAT, n_x)?;
-        check_len(WHAT, n_y)?;
+        let cells = check_table(values, n_x, n_y)?;
         validate_tolerance(marginal_tolerance)?;
         validate_tolerance(conditional_tolerance)?;
-
-        let rows = || values.chunks_exact(n_x);
-        let row_prefix = prefix_sums(rows().map(|r| r.iter().map(|&v| v as f64).sum::<f64>()));
+        let row_prefix = prefix_sums(
+            values
+                .chunks_exact(n_x)
+                .map(|r| r.iter().map(|&v| v as f64).sum::<f64>()),
+        );
         let total = row_prefix[n_y];
-        let (mut mx, mut mc) = (Vec::new(), Vec::new());
-        if total > 0.0 {
-            // Pinned rows are segments of their own; the rest is simplified
-            // as a table of its own. Its errors, relative to its own mass,
-            // are at most the tolerance, so relative to the whole they are
-            // too.
-            let pinned = pinned_rows.min(n_y);
-            let rest = n_y - pinned;
-            let mut kept: Vec<usize> = (0..pinned).collect();
-            if rest > 0 {
-                let tail = &values[pinned * n_x..];
-                let tail_kept = match simplifier.simplify_rows(tail, n_x, rest, marginal_tolerance)
-                {
-                    Some(k) => k,
-                    None => {
-                        let sub = prefix_sums(
-                            tail.chunks_exact(n_x)
-                                .map(|r| r.iter().map(|&v| v as f64).sum::<f64>()),
-                        );
-                        match cdf_points(&sub) {
-                            Some((x, p)) => simplifier.simplify(&x, &p, marginal_tolerance),
-                            None => vec![0, rest],
-                        }
-                    }
-                };
-                kept.extend(tail_kept.into_iter().map(|k| k + pinned));
-            } else {
-                kept.push(n_y);
-            }
-            push_vertices(&row_prefix, &kept, &mut mx, &mut mc);
-        } else {
-            simplify_into(
-                &row_prefix,
-                simplifier,
-                marginal_tolerance,
-                &mut mx,
-                &mut mc,
-            );
-        }
-        let segments = mx.len() - 1;
-        let m_positions = mx.len();
+        let marginal = marginal_vertices(
+            values,
+            n_x,
+            &row_prefix,
+            simplifier,
+            marginal_tolerance,
+            pinned_rows,
+        );
+        let columns = segment_columns(values, n_x, &marginal, total);
+        let (offsets, conditionals) =
+            conditional_vertices(&columns, n_x, total, simplifier, conditional_tolerance)?;
+        // The marginal is stored as its positions, then its CDF values.
+        let (mut mx, mc) = marginal;
         mx.extend_from_slice(&mc);
-        let marginal_curve = Curve::whole(&mx);
-
-        // Row boundaries of the marginal segments: vertex x = k / n_y.
-        let bounds: Vec<usize> = if total > 0.0 {
-            mx[..m_positions]
-                .iter()
-                .map(|&x| (x as f64 * n_y as f64).round() as usize)
-                .collect()
-        } else {
-            vec![0, n_y]
-        };
-        let mut offsets = Vec::with_capacity(segments + 1);
-        let (mut cx, mut cc) = (Vec::new(), Vec::new());
-        let mut conditionals = Vec::new();
-        offsets.push(0u32);
-        // The conditional of each marginal segment: the column sums of its
-        // rows (None for a zero-mass segment, which is never drawn).
-        let columns: Vec<Option<Running>> = (0..segments)
-            .map(|j| {
-                let zero_mass = marginal_curve.density(j) == 0.0;
-                (!(zero_mass && total > 0.0)).then(|| {
-                    let mut column = vec![0.0f64; n_x];
-                    for row in rows().take(bounds[j + 1]).skip(bounds[j]) {
-                        for (c, &v) in column.iter_mut().zip(row) {
-                            *c += v as f64;
-                        }
-                    }
-                    prefix_sums(column.into_iter())
-                })
-            })
-            .collect();
-        let shared = if total > 0.0 {
-            let mut curves = Vec::new();
-            let mut weights = Vec::new();
-            for prefix in columns.iter().flatten() {
-                if let Some(points) = cdf_points(prefix) {
-                    weights.push(prefix[n_x] / total);
-                    curves.push(points);
-                }
-            }
-            simplifier.simplify_many(&curves, &weights, conditional_tolerance)
-        } else {
-            None
-        };
-        let mut shared = shared.map(Vec::into_iter);
-        for prefix in &columns {
-            if let Some(prefix) = prefix {
-                cx.clear();
-                cc.clear();
-                let kept = match (&mut shared, prefix[n_x] > 0.0) {
-                    (Some(it), true) => it.next(),
-                    _ => None,
-                };
-                match kept {
-                    Some(kept) => push_vertices(prefix, &kept, &mut cx, &mut cc),
-                    None => {
-                        simplify_into(prefix, simplifier, conditional_tolerance, &mut cx, &mut cc)
-                    }
-                }
-                conditionals.extend_from_slice(&cx);
-                conditionals.extend_from_slice(&cc);
-            }
-            let end =
-                u32::try_from(conditionals.len() / 2).map_err(|_| Error::InvalidParameter {
-                    name: "table",
-                    reason: "more than 2^32 conditional vertices".into(),
-                })?;
-            offsets.push(end);
-        }
         Ok(Self::from_parts(
             mx,
             offsets,
             conditionals,
-            total / expected as f64,
+            total / cells as f64,
         ))
     }
 
@@ -576,9 +496,8 @@ impl AdaptiveCdf2D {
     /// takes: that of the first marginal segment of u.y's guide interval
     /// (`acdf_core::search::prefetch`), so that its read is in flight while
     /// the marginal is searched. The `adaptive:dp` sampler's `sample`, one
-    /// call at a time, ran 3 to 5% faster with it (built-in nickel, wo
-    /// changing every call, best of 15 runs of 10^6, four alternating runs
-    /// on a Zen 5 machine).
+    /// call at a time, measured 3 to 5% faster with it on the built-in
+    /// nickel (as `acdf bench` times it).
     #[inline(always)]
     fn prefetch_likely_conditional(&self, uy: f32) {
         let last = self.offsets.len().saturating_sub(2);
@@ -813,6 +732,177 @@ impl AdaptiveCdf2D {
     }
 }
 
+/// The number of cells of a table of `n_y` rows of `n_x`, after checking
+/// the table: non-empty dimensions, `n_x · n_y` values, each finite and
+/// non-negative, at most [`MAX_TABLE_LEN`] along each axis.
+fn check_table(values: &[f32], n_x: usize, n_y: usize) -> Result<usize> {
+    const WHAT: &str = "AdaptiveCdf2D";
+    if n_x == 0 || n_y == 0 {
+        return Err(Error::EmptyTable { what: WHAT });
+    }
+    let expected = n_x.checked_mul(n_y).ok_or(Error::InvalidParameter {
+        name: "n_x * n_y",
+        reason: "overflows usize".into(),
+    })?;
+    if values.len() != expected {
+        return Err(Error::SizeMismatch {
+            what: WHAT,
+            expected,
+            got: values.len(),
+        });
+    }
+    validate_table(WHAT, values)?;
+    check_len(WHAT, n_x)?;
+    check_len(WHAT, n_y)?;
+    Ok(expected)
+}
+
+/// The marginal's kept vertices (positions, CDF values) over the rows of
+/// `values`, whose running row sums are `row_prefix`.
+///
+/// The first `pinned_rows` rows are segments of their own; the rest is
+/// simplified as a table of its own (by the simplifier's whole-table
+/// criterion, [`Simplifier::simplify_rows`], where it has one). Its errors,
+/// relative to its own mass, are at most the tolerance, so relative to the
+/// whole they are too. An all-zero table gives the uniform marginal.
+fn marginal_vertices(
+    values: &[f32],
+    n_x: usize,
+    row_prefix: &Running,
+    simplifier: &dyn Simplifier,
+    tolerance: f64,
+    pinned_rows: usize,
+) -> (Vec<f32>, Vec<f32>) {
+    let n_y = values.len() / n_x;
+    let (mut mx, mut mc) = (Vec::new(), Vec::new());
+    if row_prefix[n_y] <= 0.0 {
+        // All zero (the sums of a checked table are finite and not negative).
+        simplify_into(row_prefix, simplifier, tolerance, &mut mx, &mut mc);
+        return (mx, mc);
+    }
+    let pinned = pinned_rows.min(n_y);
+    let rest = n_y - pinned;
+    let mut kept: Vec<usize> = (0..pinned).collect();
+    if rest > 0 {
+        let tail = &values[pinned * n_x..];
+        let tail_kept = match simplifier.simplify_rows(tail, n_x, rest, tolerance) {
+            Some(k) => k,
+            None => {
+                let sub = prefix_sums(
+                    tail.chunks_exact(n_x)
+                        .map(|r| r.iter().map(|&v| v as f64).sum::<f64>()),
+                );
+                match cdf_points(&sub) {
+                    Some((x, p)) => simplifier.simplify(&x, &p, tolerance),
+                    None => vec![0, rest],
+                }
+            }
+        };
+        kept.extend(tail_kept.into_iter().map(|k| k + pinned));
+    } else {
+        kept.push(n_y);
+    }
+    push_vertices(row_prefix, &kept, &mut mx, &mut mc);
+    (mx, mc)
+}
+
+/// The running column sums of the rows of each marginal segment of
+/// `marginal` (positions, CDF values): the unnormalised conditional of the
+/// segment. `None` for a zero-mass segment of a table with mass, which is
+/// never drawn and keeps no conditional.
+fn segment_columns(
+    values: &[f32],
+    n_x: usize,
+    marginal: &(Vec<f32>, Vec<f32>),
+    total: f64,
+) -> Vec<Option<Running>> {
+    let n_y = values.len() / n_x;
+    let (mx, mc) = marginal;
+    let mut vertices = mx.clone();
+    vertices.extend_from_slice(mc);
+    let marginal_curve = Curve::whole(&vertices);
+    let segments = mx.len() - 1;
+    // Row boundaries of the marginal segments: vertex x = k / n_y.
+    let bounds: Vec<usize> = if total > 0.0 {
+        mx.iter()
+            .map(|&x| (x as f64 * n_y as f64).round() as usize)
+            .collect()
+    } else {
+        vec![0, n_y]
+    };
+    (0..segments)
+        .map(|j| {
+            let zero_mass = marginal_curve.density(j) == 0.0;
+            (!(zero_mass && total > 0.0)).then(|| {
+                let mut column = vec![0.0f64; n_x];
+                for row in values.chunks_exact(n_x).take(bounds[j + 1]).skip(bounds[j]) {
+                    for (c, &v) in column.iter_mut().zip(row) {
+                        *c += v as f64;
+                    }
+                }
+                prefix_sums(column.into_iter())
+            })
+        })
+        .collect()
+}
+
+/// The offsets and vertices of the conditionals of the marginal segments
+/// whose column sums are `columns` (`None`: stored empty).
+///
+/// A simplifier that simplifies several curves together
+/// ([`Simplifier::simplify_many`], weighted by each segment's share of the
+/// table) picks the vertices of every conditional with mass at once; the
+/// others, and a simplifier without that form, simplify each conditional
+/// on its own.
+fn conditional_vertices(
+    columns: &[Option<Running>],
+    n_x: usize,
+    total: f64,
+    simplifier: &dyn Simplifier,
+    tolerance: f64,
+) -> Result<(Vec<u32>, Vec<f32>)> {
+    let shared = if total > 0.0 {
+        let mut curves = Vec::new();
+        let mut weights = Vec::new();
+        for prefix in columns.iter().flatten() {
+            if let Some(points) = cdf_points(prefix) {
+                weights.push(prefix[n_x] / total);
+                curves.push(points);
+            }
+        }
+        simplifier.simplify_many(&curves, &weights, tolerance)
+    } else {
+        None
+    };
+    let mut shared = shared.map(Vec::into_iter);
+    let mut offsets = Vec::with_capacity(columns.len() + 1);
+    let (mut cx, mut cc) = (Vec::new(), Vec::new());
+    let mut conditionals = Vec::new();
+    offsets.push(0u32);
+    for prefix in columns {
+        if let Some(prefix) = prefix {
+            cx.clear();
+            cc.clear();
+            let kept = match (&mut shared, prefix[n_x] > 0.0) {
+                (Some(it), true) => it.next(),
+                _ => None,
+            };
+            match kept {
+                Some(kept) => push_vertices(prefix, &kept, &mut cx, &mut cc),
+                None => simplify_into(prefix, simplifier, tolerance, &mut cx, &mut cc),
+            }
+            conditionals.extend_from_slice(&cx);
+            conditionals.extend_from_slice(&cc);
+        }
+        let end = u32::try_from(conditionals.len() / 2).map_err(|_| Error::InvalidParameter {
+            name: "table",
+            reason: "more than 2^32 conditional vertices".into(),
+        })?;
+        offsets.push(end);
+    }
+    Ok((offsets, conditionals))
+}
+
 /// The number of draws the batch samplers advance together.
 const LANES: usize = 8;
 
@@ -829,11 +919,13 @@ impl Distribution2D for AdaptiveCdf2D {
     /// elsewhere eight at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // distribution fits the lanes.
-            unsafe { self.sample_batch_gather::<false>(u, out, Vec2::ZERO, &mut []) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the
+                // distribution fits the lanes.
+                unsafe { self.sample_batch_gather::<false>(cpu, u, out, Vec2::ZERO, &mut []) };
+                return;
+            }
         }
         self.sample_batch_lanes::<false>(u, out, Vec2::ZERO, &mut []);
     }
@@ -843,11 +935,13 @@ impl Distribution2D for AdaptiveCdf2D {
     /// (`dist/gather.rs`), elsewhere one at a time.
     fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // distribution fits the lanes.
-            unsafe { self.pdf_batch_gather(p, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the
+                // distribution fits the lanes.
+                unsafe { self.pdf_batch_gather(cpu, p, out) };
+                return;
+            }
         }
         for (o, &p) in out.iter_mut().zip(p) {
             *o = self.pdf(p);
@@ -968,11 +1062,13 @@ impl SliceDistribution for AdaptiveCdf2D {
         let len = u.len().min(out.len()).min(same.len());
         let (u, out, same) = (&u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // distribution fits the lanes.
-            unsafe { self.sample_batch_gather::<true>(u, out, margin, same) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the
+                // distribution fits the lanes.
+                unsafe { self.sample_batch_gather::<true>(cpu, u, out, margin, same) };
+                return;
+            }
         }
         self.sample_batch_lanes::<true>(u, out, margin, same);
     }
@@ -997,9 +1093,10 @@ impl SliceDistribution for AdaptiveCdf2D {
         let len = dists.len().min(u.len()).min(out.len()).min(same.len());
         let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather(dists, u, margin, out, same) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::sample_each_gather(cpu, dists, u, margin, out, same) };
             return;
         }
         Self::sample_each_lanes(dists, u, margin, out, same);
@@ -1016,9 +1113,10 @@ impl SliceDistribution for AdaptiveCdf2D {
         let len = dists.len().min(p.len()).min(out.len());
         let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::pdf_each_gather(dists, p, out) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::pdf_each_gather(cpu, dists, p, out) };
             return;
         }
         Self::pdf_each_lanes(dists, p, out);

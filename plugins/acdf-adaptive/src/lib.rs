@@ -53,6 +53,8 @@
 //! `chi2` bounds the variance directly and gives 2 to 3 times the
 //! compression of `optimal` at equal efficiency.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+
 mod curve;
 pub mod dist;
 pub mod persist;

@@ -70,16 +70,13 @@ struct Guide {
 /// draw at a time that matters: a tabulated sampler locates the slice from
 /// wo just before it draws, and a scale read from the slice put the cell's
 /// multiply, clamps and conversion after that lookup on every draw's chain.
-/// The uniform sampler's `sample` ran 6 to 14% faster with the constant
-/// (built-in nickel, 256 rows, so the same guide as G = n: 17.0-17.4 to
-/// 18.5-19.4 M/s, a scratch loop of the bench's calls, best of 15 runs of
-/// 10^6, three alternating runs on a Zen 5 machine; a row count passed in
-/// by the sampler and checked against the slice's gained only 3 to 4%).
-/// 256 is the default θ_h resolution; marginals with many more rows get
-/// wider guide intervals, and those wider than [`SHORT_WINDOW`] are
-/// searched: on a nickel slice of 1024 rows a draw that waits for the one
-/// before took 19.5-19.6 ns against 19.0-19.4 with G = n (and 90 rows,
-/// 18.8-19.1 against 19.1-19.3; scratch loop, two alternating runs).
+/// The uniform sampler's `sample` measured 6 to 14% faster with the
+/// constant (built-in nickel, 256 rows, so the same guide as G = n, as
+/// `acdf bench` times `sample`; a row count passed in by the sampler and
+/// checked against the slice's gained half as much). 256 is the default θ_h
+/// resolution; marginals with many more rows get wider guide intervals,
+/// and those wider than [`SHORT_WINDOW`] are searched, which costs a draw
+/// about as much as G = n does (nickel slices of 90 and 1024 rows).
 pub(crate) const MARGINAL_GUIDE_CELLS: usize = 256;
 
 impl Guide {
@@ -379,11 +376,13 @@ impl Distribution1D for PiecewiseConstant1D {
     /// dependence, so the out-of-order core overlaps consecutive draws).
     fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // CDF fits the lanes.
-            unsafe { self.sample_batch_gather(u, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if let Some(cdf) = self.lane_list() {
+                // SAFETY: the token proves the CPU has AVX2, the one
+                // requirement of the function's target features.
+                unsafe { self.sample_batch_gather(cpu, cdf, u, out) };
+                return;
+            }
         }
         for (o, &u) in out.iter_mut().zip(u) {
             *o = self.sample(u);
@@ -394,6 +393,31 @@ impl Distribution1D for PiecewiseConstant1D {
 /// A piecewise-constant density over [0, 1)^2 from a row-major table of
 /// `ny` rows of `nx` cells: a marginal CDF over the rows (y) and one
 /// conditional CDF over x per row, stored flat for locality.
+///
+/// # Examples
+///
+/// ```
+/// use acdf_core::{Distribution2D, Sample2D, Vec2};
+/// use acdf_uniform::PiecewiseConstant2D;
+///
+/// // Two rows of three cells: the second row holds three quarters of the
+/// // mass, and its last cell half of that.
+/// let table = [1.0, 1.0, 0.0, 1.0, 1.0, 4.0];
+/// let d = PiecewiseConstant2D::new(&table, 3, 2)?;
+/// // The density of a cell is its value over the mean of the table (4/3).
+/// assert!((d.pdf(Vec2::new(0.9, 0.9)) - 3.0).abs() < 1e-6);
+/// assert_eq!(d.pdf(Vec2::new(0.9, 0.1)), 0.0);
+/// // A draw lands in a cell of positive density and reports it.
+/// let s = d.sample(Vec2::new(0.9, 0.9));
+/// assert!(s.p.x >= 2.0 / 3.0 && s.p.y >= 0.5);
+/// assert_eq!(s.pdf, d.pdf(s.p));
+/// // Many draws at once give the same samples, bit for bit.
+/// let u = [Vec2::new(0.1, 0.2), Vec2::new(0.9, 0.9), Vec2::new(0.5, 0.5)];
+/// let mut out = [Sample2D::default(); 3];
+/// d.sample_batch(&u, &mut out);
+/// assert_eq!(out[1], s);
+/// # Ok::<(), acdf_core::Error>(())
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct PiecewiseConstant2D {
     nx: usize,
@@ -547,11 +571,9 @@ impl PiecewiseConstant2D {
     /// A row of up to [`search::WINDOW`] (32) entries is compared all at
     /// once ([`search::count_window`]): its loads and compares are
     /// independent, so a draw waits for one load, one compare and the
-    /// mask, where [`count_linear`] chains two loads and two compares. One
-    /// call at a time this made the uniform sampler's `sample` 2 to 3%
-    /// faster on the built-in nickel (15.8-16.0 to 16.3-16.4 M/s, best of
-    /// 10 runs of 10^6 calls, wo changing every call, five alternating
-    /// runs on a Zen 5 machine).
+    /// mask, where [`count_linear`] chains two loads and two compares: the
+    /// uniform sampler's `sample`, one call at a time, measured 2 to 3%
+    /// faster on the built-in nickel (as `acdf bench` times it).
     #[inline(always)]
     fn column(&self, j: usize, u: f32) -> usize {
         let nx = self.nx;
@@ -588,10 +610,9 @@ impl PiecewiseConstant2D {
     /// Start loading the conditional row that a draw with this v = u.y
     /// most likely takes: the first row of v's guide interval, which holds
     /// one or two rows on most tables ([`search::prefetch`]). The
-    /// uniform sampler's `sample`, one call at a time, ran 2 to 5% faster
-    /// with it (built-in nickel, wo changing every call, best of 15 runs of
-    /// 10^6, four alternating runs on a Zen 5 machine; prefetching the
-    /// interval's last row as well gained nothing more).
+    /// uniform sampler's `sample`, one call at a time, measured 2 to 5%
+    /// faster with it on the built-in nickel (as `acdf bench` times it);
+    /// prefetching the interval's last row as well gains nothing more.
     #[inline(always)]
     fn prefetch_likely_row(&self, v: f32) {
         let g = search::Guide::cell(v, MARGINAL_GUIDE_CELLS);
@@ -674,11 +695,13 @@ impl Distribution2D for PiecewiseConstant2D {
     /// (`distribution/gather.rs`), elsewhere one at a time.
     fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_pdf_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // table fits the lanes.
-            unsafe { self.pdf_batch_gather(p, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_pdf_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the table
+                // fits the lanes.
+                unsafe { self.pdf_batch_gather(cpu, p, out) };
+                return;
+            }
         }
         for (o, &p) in out.iter_mut().zip(p) {
             *o = self.pdf(p);
@@ -721,11 +744,13 @@ impl Distribution2D for PiecewiseConstant2D {
     /// elsewhere sixteen at a time in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && self.fits_lanes() {
-            // SAFETY: the CPU has just been found to support AVX2, and the
-            // table fits the lanes.
-            unsafe { self.sample_batch_gather(u, out) };
-            return;
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            if self.fits_lanes() {
+                // SAFETY: the token proves the CPU has AVX2, and the table
+                // fits the lanes.
+                unsafe { self.sample_batch_gather(cpu, u, out) };
+                return;
+            }
         }
         self.sample_batch_lanes(u, out);
     }
@@ -851,9 +876,10 @@ impl SliceDistribution for PiecewiseConstant2D {
         let len = dists.len().min(u.len()).min(out.len());
         let (dists, u, out) = (&dists[..len], &u[..len], &mut out[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather::<false>(dists, u, Vec2::ZERO, out, &mut []) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::sample_each_gather::<false>(cpu, dists, u, Vec2::ZERO, out, &mut []) };
             return;
         }
         Self::sample_each_lanes(dists, u, out);
@@ -881,9 +907,10 @@ impl SliceDistribution for PiecewiseConstant2D {
         let len = dists.len().min(u.len()).min(out.len()).min(same.len());
         let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::sample_each_gather::<true>(dists, u, margin, out, same) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::sample_each_gather::<true>(cpu, dists, u, margin, out, same) };
             return;
         }
         Self::sample_each_lanes(dists, u, out);
@@ -897,9 +924,10 @@ impl SliceDistribution for PiecewiseConstant2D {
         let len = dists.len().min(p.len()).min(out.len());
         let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been found to support AVX2.
-            unsafe { Self::pdf_each_gather(dists, p, out) };
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2, the one requirement
+            // of the function's target features.
+            unsafe { Self::pdf_each_gather(cpu, dists, p, out) };
             return;
         }
         for ((o, d), &p) in out.iter_mut().zip(dists).zip(p) {
@@ -969,9 +997,9 @@ fn inside_cell(x: f32, n: usize, m: f32) -> bool {
     f >= m && f <= 1.0 - m
 }
 
-/// The number of draws `sample_batch` advances together: sixteen measured
-/// about 5% faster than eight on the 256x32 nickel slice (best of 40 runs
-/// of 10^6 draws, 65-67 against 63-64 M/s), and 32 no faster.
+/// The number of draws the scalar `sample_batch` advances together: sixteen
+/// measured about 5% faster than eight on the 256x32 nickel slice, and 32
+/// no faster (`sample_batch` throughput, one thread).
 const LANES: usize = 16;
 
 #[cfg(target_arch = "x86_64")]
