@@ -246,14 +246,15 @@ fn cpu_description() -> String {
     if let (Some(family), Some(model)) = (field("cpu family"), field("model")) {
         s.push_str(&format!(" (family {family}, model {model})"));
     }
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            s.push_str(", avx2");
-        }
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            s.push_str(", avx512f");
-        }
+    // The features the hot paths use, as `acdf_core::cpu` finds them
+    // (`ACDF_CPU=portable` turns them off): AVX2 with FMA, and the AVX-512
+    // mask compares (F, VL and BW).
+    let features = acdf_core::cpu::features();
+    if features.avx2_fma {
+        s.push_str(", avx2");
+    }
+    if features.mask_compares {
+        s.push_str(", avx512f");
     }
     s
 }
