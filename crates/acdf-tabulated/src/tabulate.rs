@@ -35,9 +35,13 @@
 //! 90°). [`tabulate_slice`] therefore gives every cell that is 0 at the
 //! centre a second look ([`fill_support`]): its mean of g by the
 //! trapezoid rule on (S + 1)² points, corners and edges included
-//! (S = [`SUPPORT_SUBDIVISIONS`]), averaged over outgoing directions
-//! across the outgoing cell, its edges included ([`served_outgoing`]): the
-//! mass the cell has for the outgoing directions it serves. Cells that are
+//! (S = [`SUPPORT_SUBDIVISIONS`]), for outgoing directions across the
+//! outgoing cell, its edges included ([`served_outgoing`]), and takes the
+//! largest: the cell's mass for the outgoing direction that lights it
+//! most, so that the weight f cos θ_i / p stays bounded there (with the
+//! average over the outgoing directions instead, `acdf report` measured
+//! the variance of `adaptive:rw` on gray-plastic at 3.18e-4 (±52%) against
+//! 1.23e-4). Cells that are
 //! positive at the centre keep their value, so no mass is added where the
 //! centre tabulation had some.
 //!
@@ -319,12 +323,11 @@ pub fn served_outgoing(res: &Resolution, theta_o_index: usize, phi_o_index: usiz
 /// at one wo) that is 0 but lit for some of `outgoing` a positive value:
 /// the cell's mean of g (the module's density, with its Jacobian) by the
 /// trapezoid rule on the (S + 1)² points at offsets 0, 1/S, ..., 1 along
-/// each axis (S = [`SUPPORT_SUBDIVISIONS`]), averaged over `outgoing`, at
-/// least the smallest positive normal f32. The trapezoid rule weighs the
+/// each axis (S = [`SUPPORT_SUBDIVISIONS`]), the largest over `outgoing`,
+/// at least the smallest positive normal f32. The trapezoid rule weighs the
 /// points on the cell's border by half (a quarter at the corners), so a
 /// cell lit only along its border, typically by a horizon that g meets at
-/// 0, gets about the little mass it has; and the average over `outgoing`
-/// is the mass the cell has for the outgoing directions it serves. Draws
+/// 0, gets about the little mass it has. Draws
 /// from such a cell are lost (`None`) for the outgoing directions that do
 /// not light it.
 pub fn fill_support(
@@ -369,9 +372,9 @@ pub fn fill_support(
                     }
                 }
             }
-            let average = acc.iter().sum::<f64>() / acc.len() as f64;
-            let mean = (average / points) as f32;
-            if mean.is_finite() && average > 0.0 {
+            let largest = acc.iter().copied().fold(0.0f64, f64::max);
+            let mean = (largest / points) as f32;
+            if mean.is_finite() && largest > 0.0 {
                 *cell = mean.max(f32::MIN_POSITIVE);
             }
         }
