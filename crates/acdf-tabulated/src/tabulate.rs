@@ -285,9 +285,10 @@ pub const GRAZING_COS: f32 = 1e-6;
 /// [`fill_support`]: θ_o at the cell's two edges and
 /// [`SERVED_THETA_STEPS`] - 1 points between, equally spaced in u_o (the
 /// grazing edge at cos θ_o = [`GRAZING_COS`]); the edges cover every θ_o of
-/// the cell (module documentation). When there are several φ_o cells, φ_o
-/// at the cell's two edges and its centre for each (along φ_o the three are
-/// a sampling, not a bound); one φ_o cell is used at φ_o = 0 for every wo.
+/// the cell (module documentation). φ_o is the cell's centre: one φ_o
+/// cell is used at φ_o = 0 for every wo; with several, the φ_o within a
+/// cell is not covered, so that the tables of a φ_o cell's centre stay
+/// those of the isotropic resolution (rotated by whole φ_h cells).
 pub fn served_outgoing(res: &Resolution, theta_o_index: usize, phi_o_index: usize) -> Vec<Vec3> {
     let n = res.theta_o as f32;
     // θ_o = (π/2) u_o², as for the cell centres.
@@ -295,13 +296,7 @@ pub fn served_outgoing(res: &Resolution, theta_o_index: usize, phi_o_index: usiz
     let thetas: Vec<f32> = (0..=SERVED_THETA_STEPS)
         .map(|k| theta_at((theta_o_index as f32 + k as f32 / SERVED_THETA_STEPS as f32) / n))
         .collect();
-    let centre = phi_o_center(phi_o_index, res.phi_o);
-    let phis: Vec<f32> = if res.phi_o > 1 {
-        let half = 0.5 * TAU / res.phi_o as f32;
-        vec![centre - half, centre, centre + half]
-    } else {
-        vec![centre]
-    };
+    let phis = [phi_o_center(phi_o_index, res.phi_o)];
     let mut out = Vec::with_capacity(thetas.len() * phis.len());
     for &t in &thetas {
         let (sin_t, cos_t) = t.sin_cos();
