@@ -33,6 +33,10 @@ pub enum Check {
     /// `sample_batch` / `pdf_batch` / `sample_each` / `pdf_each` disagree
     /// with the one-at-a-time calls.
     Batch,
+    /// The pdf is 0 on more than the allowed share of f cos θ_i
+    /// ([`missed_share`](crate::sampler_checks::missed_share)): light the
+    /// sampler can never draw.
+    Support,
     /// The code under test panicked.
     Panic,
 }

@@ -95,3 +95,41 @@ join!("chi2", chi2_1d, chi2_2d, chi2_sampler);
 join!("dp-perp", dp_perp_1d, dp_perp_2d);
 join!("vw-area", vw_area_1d, vw_area_2d);
 join!("opheim", opheim_1d, opheim_2d, opheim_sampler);
+
+/// No simplifier merges a positive cell into a segment of density 0: on a
+/// table of zero runs broken by single cells of 1e-12 (next to cells of 1
+/// and 0.5), every positive cell keeps a positive pdf at its centre, for
+/// every simplifier of `SIMPLIFIERS` at its default tolerance and at 100
+/// times it. (Each segment between kept vertices carries the mass of the
+/// cells it covers, and the stored CDF rises by at least one f32 step over
+/// a segment with a positive cell.)
+#[test]
+fn positive_cells_keep_a_positive_density() {
+    use acdf_core::{Distribution2D, Vec2};
+    let (nx, ny) = (16usize, 64usize);
+    let mut table = vec![0.0f32; nx * ny];
+    for k in (0..nx * ny).step_by(37) {
+        table[k] = 1e-12;
+    }
+    table[5 * nx + 3] = 1.0;
+    table[40 * nx + 9] = 0.5;
+    for entry in acdf_adaptive::simplify::SIMPLIFIERS {
+        let s = (entry.make)();
+        for tolerance in [s.default_tolerance(), 100.0 * s.default_tolerance()] {
+            let d = AdaptiveCdf2D::from_values(&table, nx, ny, &*s, tolerance).unwrap();
+            for (k, &v) in table.iter().enumerate() {
+                if v > 0.0 {
+                    let p = Vec2::new(
+                        ((k % nx) as f32 + 0.5) / nx as f32,
+                        ((k / nx) as f32 + 0.5) / ny as f32,
+                    );
+                    assert!(
+                        d.pdf(p) > 0.0,
+                        "{} at {tolerance}: cell {k} of value {v} has pdf 0",
+                        entry.name
+                    );
+                }
+            }
+        }
+    }
+}

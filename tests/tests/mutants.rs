@@ -549,3 +549,91 @@ fn rejects_pdf_batch_reading_the_row_above() {
     );
     assert_rejected(&report, Check::Batch);
 }
+
+// ------------------------------------------- one partly lit cell zeroed
+
+/// The uniform tabulated sampler at the isotropic resolution with one
+/// half-vector cell of its grazing slice (θ_o from 84.5° to 90°) left at 0:
+/// the cell that the centre of the slice (87.2°) reflects below the horizon
+/// but other outgoing directions of the slice do not, with the most mass.
+/// `sample` returns `None` for draws in it and `pdf` is 0 there, so sample
+/// and pdf agree and ∫ pdf equals the fraction of successful draws: only
+/// the support check can see it.
+struct ZeroedCell {
+    inner: acdf_uniform::UniformBrdfSampler,
+    resolution: acdf_tabulated::Resolution,
+    /// (column, row) of the zeroed cell in the last θ_o slice.
+    cell: (usize, usize),
+}
+
+impl ZeroedCell {
+    fn new(brdf: std::sync::Arc<dyn acdf_core::Brdf>) -> Result<Self> {
+        use acdf_tabulated::tabulate::{slice_outgoing, tabulate_for, tabulate_slice};
+        let resolution = acdf_tabulated::Resolution::ISOTROPIC;
+        let last = resolution.theta_o - 1;
+        let (n_phi, n_theta) = (resolution.phi_h, resolution.theta_h);
+        let centre = tabulate_for(&*brdf, slice_outgoing(&resolution, last, 0), n_theta, n_phi);
+        let filled = tabulate_slice(&*brdf, &resolution, last, 0);
+        let index = centre
+            .iter()
+            .zip(&filled)
+            .enumerate()
+            .filter(|(_, (c, f))| **c == 0.0 && **f > 0.0)
+            .max_by(|a, b| a.1 .1.total_cmp(b.1 .1))
+            .map(|(k, _)| k)
+            .ok_or_else(|| acdf_core::Error::InvalidParameter {
+                name: "brdf",
+                reason: "no partly lit cell to zero".into(),
+            })?;
+        let inner = acdf_uniform::UniformBrdfSampler::new(
+            brdf,
+            resolution,
+            acdf_uniform::PiecewiseConstantBuilder,
+        )?;
+        Ok(ZeroedCell {
+            inner,
+            resolution,
+            cell: (index % n_phi, index / n_phi),
+        })
+    }
+
+    fn zeroed(&self, wo: Vec3, wi: Vec3) -> bool {
+        let res = &self.resolution;
+        if acdf_tabulated::outgoing_cell(res, wo).0 != res.theta_o - 1 {
+            return false;
+        }
+        let h = (wo + wi).normalize();
+        acdf_tabulated::half_vector_cell(h, wo.y.atan2(wo.x), res.phi_h, res.theta_h) == self.cell
+    }
+}
+
+impl BxdfSampler for ZeroedCell {
+    fn name(&self) -> &str {
+        "mutant-zeroed-cell"
+    }
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        self.inner.sample(wo, u).filter(|s| !self.zeroed(wo, s.wi))
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wi.is_finite() && self.zeroed(wo, wi) {
+            0.0
+        } else {
+            self.inner.pdf(wo, wi)
+        }
+    }
+    fn storage_bytes(&self) -> usize {
+        self.inner.storage_bytes()
+    }
+}
+
+#[test]
+fn rejects_a_partly_lit_cell_left_at_zero() {
+    let lambert = acdf_materials::builtin("lambert").expect("built-in material");
+    let report = check_sampler_family(
+        "mutant-zeroed-cell",
+        ZeroedCell::new,
+        &[lambert],
+        &sampler_config(),
+    );
+    assert_rejected(&report, Check::Support);
+}

@@ -449,6 +449,103 @@ fn summarise(name: &str, moments: &[DirectionMoments], n: usize, timing: Timing)
     }
 }
 
+/// The quadrature of [`missed_share`]: `n_cos` × `n_phi` cells of equal
+/// solid angle over the upper hemisphere, equal steps in cos θ_i and φ_i,
+/// each evaluated at its centre.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct HemisphereGrid {
+    pub n_cos: usize,
+    pub n_phi: usize,
+}
+
+impl HemisphereGrid {
+    /// 256 × 512 cells (of 2.4e-5 sr each) in cos θ_i × φ_i: the grid of
+    /// `acdf report`'s missed-share column.
+    pub const REPORT: HemisphereGrid = HemisphereGrid {
+        n_cos: 256,
+        n_phi: 512,
+    };
+
+    /// The incident direction at the centre of cell (k, l): cos θ_i =
+    /// (k + 1/2) / n_cos, φ_i = 2π (l + 1/2) / n_phi.
+    pub fn direction(&self, k: usize, l: usize) -> Vec3 {
+        let cos_t = (k as f64 + 0.5) / self.n_cos as f64;
+        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+        let phi = std::f64::consts::TAU * (l as f64 + 0.5) / self.n_phi as f64;
+        Vec3::new(
+            (sin_t * phi.cos()) as f32,
+            (sin_t * phi.sin()) as f32,
+            cos_t as f32,
+        )
+    }
+}
+
+/// The outgoing polar angles, in degrees, of `acdf report`'s missed share
+/// (at φ_o = [`MISSED_SHARE_PHI_O`]): from the normal to 89.5°, denser at
+/// grazing angles, where a tabulated slice's horizon moves most across its
+/// outgoing cell.
+pub const MISSED_SHARE_THETA_O: [f32; 8] = [0.0, 30.0, 60.0, 70.0, 80.0, 85.0, 89.0, 89.5];
+
+/// The outgoing azimuth, in radians, of [`MISSED_SHARE_THETA_O`]: 1 rad,
+/// off the centre of every φ_o cell of the tabulated resolutions.
+pub const MISSED_SHARE_PHI_O: f32 = 1.0;
+
+/// The share of the reflected luminance that `sampler` can never draw at
+/// `wo`: ∫_{p = 0} Y(f) cos θ_i dω / ∫ Y(f) cos θ_i dω over the upper
+/// hemisphere, by the midpoint rule on `grid` (f = `brdf.eval`, p =
+/// `sampler.pdf`, Y the luminance). An unbiased estimator of light
+/// reflected towards wo needs p > 0 wherever f cos θ_i > 0; the share is
+/// the fraction by which a sampler used alone is biased dark, whatever the
+/// sample count. 0 when the BRDF reflects nothing at wo. Deterministic; the
+/// rows of the grid are summed in parallel and in a fixed order.
+pub fn missed_share(
+    brdf: &dyn Brdf,
+    sampler: &dyn BxdfSampler,
+    wo: Vec3,
+    grid: HemisphereGrid,
+) -> f64 {
+    let rows: Vec<(f64, f64)> = (0..grid.n_cos)
+        .into_par_iter()
+        .map(|k| {
+            let wi: Vec<Vec3> = (0..grid.n_phi).map(|l| grid.direction(k, l)).collect();
+            let mut pdf = vec![0.0f32; wi.len()];
+            sampler.pdf_batch(wo, &wi, &mut pdf);
+            let (mut all, mut missed) = (0.0f64, 0.0f64);
+            for (&wi, &p) in wi.iter().zip(&pdf) {
+                let g = brdf.luminance(wo, wi) as f64 * wi.z as f64;
+                if g.is_finite() && g > 0.0 {
+                    all += g;
+                    let drawable = p > 0.0;
+                    if !drawable {
+                        missed += g;
+                    }
+                }
+            }
+            (all, missed)
+        })
+        .collect();
+    let (all, missed) = rows
+        .iter()
+        .fold((0.0, 0.0), |(a, m), &(ra, rm)| (a + ra, m + rm));
+    if all > 0.0 {
+        missed / all
+    } else {
+        0.0
+    }
+}
+
+/// [`missed_share`] at each of [`MISSED_SHARE_THETA_O`] (φ_o =
+/// [`MISSED_SHARE_PHI_O`]) on `grid`, in that order.
+pub fn missed_shares(brdf: &dyn Brdf, sampler: &dyn BxdfSampler, grid: HemisphereGrid) -> Vec<f64> {
+    MISSED_SHARE_THETA_O
+        .iter()
+        .map(|&t| {
+            let wo = acdf_core::geometry::spherical_direction(t.to_radians(), MISSED_SHARE_PHI_O);
+            missed_share(brdf, sampler, wo, grid)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,14 +1,18 @@
 //! The results table: for one material, every sampler's storage, the
 //! compression against the uniform tabulation, and its estimator efficiency
 //! (see [`efficiency`](crate::efficiency)), absolute and relative to the
-//! uniform sampler.
+//! uniform sampler, and the share of the reflected light it can never draw
+//! ([`missed_share`](crate::efficiency::missed_share)).
 
 use std::time::Instant;
 
 use acdf_core::BxdfSampler;
 use serde::Serialize;
 
-use crate::efficiency::{measure_efficiencies, Efficiency, EfficiencyConfig};
+use crate::efficiency::{
+    measure_efficiencies, missed_shares, Efficiency, EfficiencyConfig, HemisphereGrid,
+    MISSED_SHARE_THETA_O,
+};
 use crate::env::Environment;
 use crate::error::Result;
 use crate::material::Material;
@@ -51,6 +55,15 @@ pub struct ReportRow {
     pub efficiency: Option<f64>,
     /// efficiency / efficiency(uniform).
     pub relative_efficiency: Option<f64>,
+    /// The missed share ∫_{p=0} Y(f) cos θ_i dω / ∫ Y(f) cos θ_i dω at each
+    /// outgoing angle of `missed_share_theta_o` (φ_o =
+    /// [`MISSED_SHARE_PHI_O`](crate::efficiency::MISSED_SHARE_PHI_O)), by the midpoint rule on
+    /// [`HemisphereGrid::REPORT`]: the bias of the sampler used alone.
+    pub missed_share: Vec<f64>,
+    /// θ_o in degrees of each entry of `missed_share`.
+    pub missed_share_theta_o: Vec<f32>,
+    /// The largest entry of `missed_share`.
+    pub missed_share_max: f64,
 }
 
 fn finite(x: f64) -> Option<f64> {
@@ -65,6 +78,7 @@ struct Measured {
     storage_bytes: usize,
     build_seconds: f64,
     efficiency: Efficiency,
+    missed: Vec<f64>,
 }
 
 /// Measure each sampler of `samplers` on `material` (the default set is
@@ -105,6 +119,7 @@ pub fn report_material(
             storage_bytes: sampler.storage_bytes(),
             build_seconds: *build_seconds,
             efficiency,
+            missed: missed_shares(material.brdf.as_ref(), sampler, HemisphereGrid::REPORT),
         })
         .collect();
     let uniform = measured.iter().find(|m| m.spec == SamplerSpec::UNIFORM);
@@ -136,6 +151,9 @@ pub fn report_material(
                 seconds_per_eval: e.timing.seconds_per_eval,
                 efficiency: finite(e.efficiency),
                 relative_efficiency: uniform_eff.and_then(|u| finite(e.efficiency / u)),
+                missed_share: m.missed.clone(),
+                missed_share_theta_o: MISSED_SHARE_THETA_O.to_vec(),
+                missed_share_max: m.missed.iter().copied().fold(0.0, f64::max),
             }
         })
         .collect())
@@ -151,6 +169,35 @@ pub fn human_bytes(bytes: usize) -> String {
     } else {
         format!("{bytes} B")
     }
+}
+
+/// A missed share: `0` when exactly zero, else three significant digits.
+fn share(x: f64) -> String {
+    if x == 0.0 {
+        "0".to_string()
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// The missed share of every row at each outgoing angle, as a Markdown
+/// table (φ_o = 1 rad; the grid of [`HemisphereGrid::REPORT`]).
+pub fn format_missed_table(rows: &[ReportRow]) -> String {
+    let angles: Vec<String> = MISSED_SHARE_THETA_O
+        .iter()
+        .map(|t| format!("θ_o {t}°"))
+        .collect();
+    let mut header = vec!["material".to_string(), "sampler".to_string()];
+    header.extend(angles);
+    let body: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            let mut cells = vec![r.material.clone(), r.sampler.clone()];
+            cells.extend(r.missed_share.iter().map(|&x| share(x)));
+            cells
+        })
+        .collect();
+    markdown(&header, &body, 2)
 }
 
 fn opt(x: Option<f64>, f: impl Fn(f64) -> String) -> String {
@@ -170,8 +217,9 @@ pub fn format_table(rows: &[ReportRow]) -> String {
         "ns/sample",
         "efficiency (1/s)",
         "rel. eff.",
+        "missed (max)",
     ];
-    let body: Vec<[String; 10]> = rows
+    let body: Vec<[String; 11]> = rows
         .iter()
         .map(|r| {
             [
@@ -185,23 +233,31 @@ pub fn format_table(rows: &[ReportRow]) -> String {
                 format!("{:.0}", r.seconds_per_sample * 1e9),
                 opt(r.efficiency, |e| format!("{e:.3e}")),
                 opt(r.relative_efficiency, |e| format!("{e:.2}")),
+                share(r.missed_share_max),
             ]
         })
         .collect();
+    let header: Vec<String> = header.iter().map(|h| h.to_string()).collect();
+    let body: Vec<Vec<String>> = body.into_iter().map(Vec::from).collect();
+    markdown(&header, &body, 3)
+}
+
+/// A Markdown table: the first `text_columns` columns left-aligned, the
+/// others (numbers) right-aligned, every column padded to its widest cell.
+fn markdown(header: &[String], body: &[Vec<String>], text_columns: usize) -> String {
     let mut widths: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
-    for row in &body {
+    for row in body {
         for (w, cell) in widths.iter_mut().zip(row) {
             *w = (*w).max(cell.chars().count());
         }
     }
-    let line = |cells: Vec<&str>| -> String {
+    let line = |cells: &[String]| -> String {
         let padded: Vec<String> = cells
             .iter()
             .zip(&widths)
             .enumerate()
             .map(|(i, (c, &w))| {
-                // Text columns left-aligned, numbers right-aligned.
-                if i < 3 {
+                if i < text_columns {
                     format!("{c:<w$}")
                 } else {
                     format!("{c:>w$}")
@@ -210,13 +266,13 @@ pub fn format_table(rows: &[ReportRow]) -> String {
             .collect();
         format!("| {} |\n", padded.join(" | "))
     };
-    let mut out = line(header.to_vec());
+    let mut out = line(header);
     out.push_str(&format!(
         "|{}|\n",
         widths
             .iter()
             .enumerate()
-            .map(|(i, &w)| if i < 3 {
+            .map(|(i, &w)| if i < text_columns {
                 format!(":{}", "-".repeat(w + 1))
             } else {
                 format!("{}:", "-".repeat(w + 1))
@@ -224,8 +280,8 @@ pub fn format_table(rows: &[ReportRow]) -> String {
             .collect::<Vec<_>>()
             .join("|")
     ));
-    for row in &body {
-        out.push_str(&line(row.iter().map(String::as_str).collect()));
+    for row in body {
+        out.push_str(&line(row));
     }
     out
 }
@@ -254,10 +310,14 @@ mod tests {
             seconds_per_eval: 0.0,
             efficiency: Some(5e7),
             relative_efficiency: None,
+            missed_share: vec![0.0, 2.5e-3],
+            missed_share_theta_o: vec![0.0, 85.0],
+            missed_share_max: 2.5e-3,
         };
-        let t = format_table(&[row.clone(), row]);
+        let t = format_table(&[row.clone(), row.clone()]);
         assert_eq!(t.lines().count(), 4);
-        assert!(t.contains("cosine") && t.contains("5.000e7"));
+        assert!(t.contains("cosine") && t.contains("5.000e7") && t.contains("2.50e-3"));
+        assert_eq!(format_missed_table(&[row]).lines().count(), 3);
         assert_eq!(human_bytes(2048), "2.0 KiB");
     }
 }

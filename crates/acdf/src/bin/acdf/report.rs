@@ -8,7 +8,7 @@ use acdf::env::Sky;
 use acdf::error::Result;
 use acdf::material::{load_material, Material};
 use acdf::registry::{report_default_help, report_samplers, sampler_help, sampler_long_help};
-use acdf::report::{format_table, report_material, ReportRow};
+use acdf::report::{format_missed_table, format_table, report_material, ReportRow};
 use acdf::spec::{SamplerSpec, DEFAULT_REPORT_MATERIALS};
 
 use crate::common::{bar, write_json, MeasureArgs, TableArgs};
@@ -25,6 +25,10 @@ pub struct Args {
     // The help lists the default set and every sampler, from the registry.
     #[arg(long, value_name = "NAME", help = sampler_list_help(false), long_help = sampler_list_help(true))]
     sampler: Vec<String>,
+    /// Also print the missed share of every sampler at each outgoing angle
+    /// (the column `missed (max)` is the largest of them).
+    #[arg(long)]
+    missed_by_angle: bool,
     /// Also write the rows as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -95,6 +99,15 @@ pub fn run(a: Args) -> Result<()> {
     pb.finish_and_clear();
     println!();
     print!("{}", format_table(&rows));
+    println!(
+        "\nmissed (max): the largest share of f cos θ_i where the pdf is 0, over θ_o in {{{}}}° at \
+         φ_o = 1 rad (midpoint rule, 256 x 512 cells in cos θ_i x φ_i)",
+        acdf::efficiency::MISSED_SHARE_THETA_O.map(|t| t.to_string()).join(", ")
+    );
+    if a.missed_by_angle {
+        println!();
+        print!("{}", format_missed_table(&rows));
+    }
     println!(
         "\n{} rows (material x sampler) measured in {:.1} s",
         rows.len(),
