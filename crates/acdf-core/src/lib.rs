@@ -7,9 +7,9 @@
 //! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
 //! their SIMD-lane form for batches in `search::lanes`), with the one place
 //! that detects the CPU features they choose their code by (`cpu`);
-//! and the one error type. It holds no sampler and no data format,
-//! so that plug-ins and material readers depend only on this small crate and
-//! never on each other.
+//! and the one error type. It holds no sampler and no data format, so that
+//! plug-ins and material readers depend on this small crate (the tabulated
+//! plug-ins also on `acdf-tabulated`) and never on each other.
 //!
 //! Conventions used throughout acdf:
 //! - directions live in the local shading frame, `z` along the normal, and both
