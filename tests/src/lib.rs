@@ -78,8 +78,8 @@
 //! over all (BRDF, wo) of the call. Every sample: unit finite wi with
 //! wi.z > 0, finite pdf > 0 equal to `pdf(wo, wi)` to 1e-4 relative;
 //! f cos θ_i / pdf finite (f32). Support: where a BRDF is given, the share
-//! of f cos θ_i (summed over channels) on which `pdf` is 0,
-//! [`missed_share`](sampler_checks::missed_share), is at most
+//! of Y(f) cos θ_i (Y the luminance) on which `pdf` is 0,
+//! [`missed_share`](acdf_core::missed_share), is at most
 //! `max_missed_share` (1e-7 by default) at every configured wo, by the
 //! midpoint rule on 128 × 256 equal-area cells of (cos θ_i, φ_i) over the
 //! upper hemisphere (cells of 1.9e-4 sr); the battery's reference samplers,

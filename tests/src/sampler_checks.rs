@@ -7,7 +7,10 @@ use crate::chi2::{chi_square, sidak, ChiSquareOutcome};
 use crate::quadrature::integrate_2d_split;
 use crate::report::{Check, ChiSquareLine, Report};
 use acdf_core::geometry::{phi, spherical_direction};
-use acdf_core::{clamp_unit, Brdf, BxdfSample, BxdfSampler, Result, Vec2, Vec3, ONE_MINUS_EPSILON};
+use acdf_core::{
+    clamp_unit, missed_share, Brdf, BxdfSample, BxdfSampler, MissedShare, Result, Vec2, Vec3,
+    ONE_MINUS_EPSILON,
+};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
@@ -358,66 +361,8 @@ fn check_extreme_wo(
     }
 }
 
-/// One ring of [`missed_share`]'s quadrature: the sum of f cos θ_i, the sum
-/// where the pdf is 0, and the largest such term with its direction.
-type RingSums = (f64, f64, Option<(f64, Vec3)>);
-
-/// The share of the light reflected towards `wo` that `sampler` can never
-/// draw, and the direction of its largest missed contribution:
-/// ∫_{pdf = 0} f cos θ_i dω / ∫ f cos θ_i dω, f summed over the three
-/// channels, by the midpoint rule over `cells` = (n_c, n_φ) cells of equal
-/// solid angle (n_c steps in cos θ_i over (0, 1], n_φ in φ_i). A sampler
-/// with pdf 0 where f cos θ_i > 0 gives an estimator biased low by this
-/// share at any sample count, which neither the chi-square test nor the
-/// integral check can see (sample and pdf still agree). 0 when f is 0
-/// everywhere.
-pub fn missed_share(
-    sampler: &dyn BxdfSampler,
-    brdf: &dyn Brdf,
-    wo: Vec3,
-    cells: (usize, usize),
-) -> (f64, Option<Vec3>) {
-    let (n_c, n_phi) = (cells.0.max(1), cells.1.max(1));
-    let per_ring: Vec<RingSums> = (0..n_c)
-        .into_par_iter()
-        .map(|k| {
-            let z = (k as f64 + 0.5) / n_c as f64;
-            let r = (1.0 - z * z).sqrt();
-            let mut ring = (0.0f64, 0.0f64, None::<(f64, Vec3)>);
-            for l in 0..n_phi {
-                let (sin_p, cos_p) = (TAU * (l as f64 + 0.5) / n_phi as f64).sin_cos();
-                let wi = Vec3::new((r * cos_p) as f32, (r * sin_p) as f32, z as f32);
-                let f = brdf.eval(wo, wi);
-                let g = (f.x + f.y + f.z) as f64 * z;
-                if !(g.is_finite() && g > 0.0) {
-                    continue;
-                }
-                ring.0 += g;
-                if sampler.pdf(wo, wi) == 0.0 {
-                    ring.1 += g;
-                    if ring.2.is_none_or(|(worst, _)| g > worst) {
-                        ring.2 = Some((g, wi));
-                    }
-                }
-            }
-            ring
-        })
-        .collect();
-    let total: f64 = per_ring.iter().map(|r| r.0).sum();
-    let missed: f64 = per_ring.iter().map(|r| r.1).sum();
-    let worst = per_ring
-        .iter()
-        .filter_map(|r| r.2)
-        .max_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, wi)| wi);
-    if total > 0.0 {
-        (missed / total, worst)
-    } else {
-        (0.0, None)
-    }
-}
-
-/// The support check: at each configured wo, [`missed_share`] must not
+/// The support check: at each configured wo,
+/// [`missed_share`](acdf_core::missed_share) must not
 /// exceed `config.max_missed_share`.
 fn check_support(
     report: &mut Report,
@@ -433,7 +378,8 @@ fn check_support(
         let wo = outgoing(t, config.wo_phi);
         let case = format!("{subject} {}(support)", describe(Some(brdf), wo));
         guarded(report, &case, |r| {
-            let (share, worst) = missed_share(sampler, brdf, wo, config.support_cells);
+            let (n_cos, n_phi) = config.support_cells;
+            let MissedShare { share, worst } = missed_share(brdf, sampler, wo, n_cos, n_phi);
             if share > bound {
                 r.fail(
                     Check::Support,

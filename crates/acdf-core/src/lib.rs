@@ -39,7 +39,7 @@ pub use distribution::{
 };
 pub use error::{Error, Result};
 pub use geometry::{Frame, HalfDiff};
-pub use sampler::{is_valid_outgoing, BxdfSample, BxdfSampler};
+pub use sampler::{is_valid_outgoing, missed_share, BxdfSample, BxdfSampler, MissedShare};
 
 /// Re-exported so that downstream crates name the same vector types.
 pub use glam::{Vec2, Vec3};

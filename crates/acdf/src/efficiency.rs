@@ -465,19 +465,6 @@ impl HemisphereGrid {
         n_cos: 256,
         n_phi: 512,
     };
-
-    /// The incident direction at the centre of cell (k, l): cos θ_i =
-    /// (k + 1/2) / n_cos, φ_i = 2π (l + 1/2) / n_phi.
-    pub fn direction(&self, k: usize, l: usize) -> Vec3 {
-        let cos_t = (k as f64 + 0.5) / self.n_cos as f64;
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let phi = std::f64::consts::TAU * (l as f64 + 0.5) / self.n_phi as f64;
-        Vec3::new(
-            (sin_t * phi.cos()) as f32,
-            (sin_t * phi.sin()) as f32,
-            cos_t as f32,
-        )
-    }
 }
 
 /// The outgoing polar angles, in degrees, of `acdf report`'s missed share
@@ -491,54 +478,21 @@ pub const MISSED_SHARE_THETA_O: [f32; 8] = [0.0, 30.0, 60.0, 70.0, 80.0, 85.0, 8
 pub const MISSED_SHARE_PHI_O: f32 = 1.0;
 
 /// The share of the reflected luminance that `sampler` can never draw at
-/// `wo`: ∫_{p = 0} Y(f) cos θ_i dω / ∫ Y(f) cos θ_i dω over the upper
-/// hemisphere, by the midpoint rule on `grid` (f = `brdf.eval`, p =
-/// `sampler.pdf`, Y the luminance). An unbiased estimator of light
-/// reflected towards wo needs p > 0 wherever f cos θ_i > 0; the share is
-/// the fraction by which a sampler used alone is biased dark, whatever the
-/// sample count. 0 when the BRDF reflects nothing at wo. Deterministic; the
-/// rows of the grid are summed in parallel and in a fixed order.
+/// `wo`, on `grid`: [`acdf_core::missed_share`].
 pub fn missed_share(
     brdf: &dyn Brdf,
     sampler: &dyn BxdfSampler,
     wo: Vec3,
     grid: HemisphereGrid,
 ) -> f64 {
-    let rows: Vec<(f64, f64)> = (0..grid.n_cos)
-        .into_par_iter()
-        .map(|k| {
-            let wi: Vec<Vec3> = (0..grid.n_phi).map(|l| grid.direction(k, l)).collect();
-            let mut pdf = vec![0.0f32; wi.len()];
-            sampler.pdf_batch(wo, &wi, &mut pdf);
-            let (mut all, mut missed) = (0.0f64, 0.0f64);
-            for (&wi, &p) in wi.iter().zip(&pdf) {
-                let g = brdf.luminance(wo, wi) as f64 * wi.z as f64;
-                if g.is_finite() && g > 0.0 {
-                    all += g;
-                    let drawable = p > 0.0;
-                    if !drawable {
-                        missed += g;
-                    }
-                }
-            }
-            (all, missed)
-        })
-        .collect();
-    let (all, missed) = rows
-        .iter()
-        .fold((0.0, 0.0), |(a, m), &(ra, rm)| (a + ra, m + rm));
-    if all > 0.0 {
-        missed / all
-    } else {
-        0.0
-    }
+    acdf_core::missed_share(brdf, sampler, wo, grid.n_cos, grid.n_phi).share
 }
 
 /// [`missed_share`] at each of [`MISSED_SHARE_THETA_O`] (φ_o =
 /// [`MISSED_SHARE_PHI_O`]) on `grid`, in that order.
 pub fn missed_shares(brdf: &dyn Brdf, sampler: &dyn BxdfSampler, grid: HemisphereGrid) -> Vec<f64> {
     MISSED_SHARE_THETA_O
-        .iter()
+        .par_iter()
         .map(|&t| {
             let wo = acdf_core::geometry::spherical_direction(t.to_radians(), MISSED_SHARE_PHI_O);
             missed_share(brdf, sampler, wo, grid)
