@@ -34,7 +34,7 @@ pub enum Check {
     /// with the one-at-a-time calls.
     Batch,
     /// The pdf is 0 on more than the allowed share of f cos θ_i
-    /// ([`missed_share`](crate::sampler_checks::missed_share)): light the
+    /// ([`missed_share`](acdf_core::missed_share)): light the
     /// sampler can never draw.
     Support,
     /// The code under test panicked.
