@@ -281,14 +281,19 @@ pub const SERVED_THETA_STEPS: usize = 8;
 /// at cos θ_o = 1e-6 (θ_o = 90° - 2e-4°).
 pub const GRAZING_COS: f32 = 1e-6;
 
+/// Steps across a φ_o cell in [`served_outgoing`] when there are several:
+/// φ_o at its two edges and 3 points between, equally spaced.
+pub const SERVED_PHI_STEPS: usize = 4;
+
 /// The outgoing directions that stand for slice (θ_o cell, φ_o cell) in
 /// [`fill_support`]: θ_o at the cell's two edges and
 /// [`SERVED_THETA_STEPS`] - 1 points between, equally spaced in u_o (the
 /// grazing edge at cos θ_o = [`GRAZING_COS`]); the edges cover every θ_o of
-/// the cell (module documentation). φ_o is the cell's centre: one φ_o
-/// cell is used at φ_o = 0 for every wo; with several, the φ_o within a
-/// cell is not covered, so that the tables of a φ_o cell's centre stay
-/// those of the isotropic resolution (rotated by whole φ_h cells).
+/// the cell (module documentation). With one φ_o cell, φ_o = 0 (the slice
+/// is relative to φ_o). With several, the slice keeps absolute φ_h and
+/// serves every φ_o of its cell, so φ_o also runs over the cell's two edges
+/// and [`SERVED_PHI_STEPS`] - 1 points between: turning wo turns the lobe,
+/// and the cells it turns into must not be 0.
 pub fn served_outgoing(res: &Resolution, theta_o_index: usize, phi_o_index: usize) -> Vec<Vec3> {
     let n = res.theta_o as f32;
     // θ_o = (π/2) u_o², as for the cell centres.
@@ -296,7 +301,15 @@ pub fn served_outgoing(res: &Resolution, theta_o_index: usize, phi_o_index: usiz
     let thetas: Vec<f32> = (0..=SERVED_THETA_STEPS)
         .map(|k| theta_at((theta_o_index as f32 + k as f32 / SERVED_THETA_STEPS as f32) / n))
         .collect();
-    let phis = [phi_o_center(phi_o_index, res.phi_o)];
+    let centre = phi_o_center(phi_o_index, res.phi_o);
+    let phis: Vec<f32> = if res.phi_o == 1 {
+        vec![centre]
+    } else {
+        let width = TAU / res.phi_o as f32;
+        (0..=SERVED_PHI_STEPS)
+            .map(|k| centre + width * (k as f32 / SERVED_PHI_STEPS as f32 - 0.5))
+            .collect()
+    };
     let mut out = Vec::with_capacity(thetas.len() * phis.len());
     for &t in &thetas {
         let (sin_t, cos_t) = t.sin_cos();
@@ -342,6 +355,14 @@ pub fn fill_support(
     let trapezoid = |k: usize| if k == 0 || k == sub { 0.5 } else { 1.0 };
     // The sum of g over the cell's points, per outgoing direction.
     let mut acc = vec![0.0f64; outgoing.len()];
+    // Per outgoing direction: (sin θ_o, cos θ_o), and the largest
+    // cos(φ_h - φ_o) over each column of cells.
+    let polar: Vec<(f32, f32)> = outgoing.iter().map(|wo| (wo.x.hypot(wo.y), wo.z)).collect();
+    let column_cos: Vec<Vec<f32>> = outgoing
+        .iter()
+        .map(|wo| largest_cos_per_column(wo.y.atan2(wo.x), n_phi_h))
+        .collect();
+    let mut lit = vec![false; outgoing.len()];
     for (iy, row) in values.chunks_exact_mut(n_phi_h).enumerate() {
         // The row's sub-point rings: (v, sin θ_h, cos θ_h, J).
         let rings: Vec<(f32, f32, f32)> = (0..=sub)
@@ -355,6 +376,19 @@ pub fn fill_support(
             if *cell > 0.0 {
                 continue;
             }
+            // Skip the outgoing directions that reflect no half vector of
+            // the cell above the horizon (a bound, so none is skipped that
+            // lights it), and the cell if none is left.
+            let (sin_lo, cos_hi) = (rings[0].0, rings[0].1);
+            let sin_hi = rings[sub].0;
+            let mut any = false;
+            for (k, flag) in lit.iter_mut().enumerate() {
+                *flag = may_reflect_above(polar[k], column_cos[k][ix], (sin_lo, sin_hi, cos_hi));
+                any |= *flag;
+            }
+            if !any {
+                continue;
+            }
             acc.iter_mut().for_each(|a| *a = 0.0);
             for a in 0..=sub {
                 let x = (ix as f32 + a as f32 / sub as f32) / n_phi_h as f32;
@@ -362,7 +396,12 @@ pub fn fill_support(
                 for (b, &(sin_h, cos_h, jacobian)) in rings.iter().enumerate() {
                     let h = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
                     let w = trapezoid(a) * trapezoid(b) * jacobian as f64;
-                    for (acc, &wo) in acc.iter_mut().zip(outgoing) {
+                    for ((acc, &wo), _) in acc
+                        .iter_mut()
+                        .zip(outgoing)
+                        .zip(&lit)
+                        .filter(|(_, &lit)| lit)
+                    {
                         *acc += incident_density(brdf, wo, h) as f64 * w;
                     }
                 }
@@ -374,6 +413,42 @@ pub fn fill_support(
             }
         }
     }
+}
+
+/// For each of `n` columns of cells (φ_h in [2π k / n, 2π (k + 1) / n]),
+/// the largest cos(φ_h - φ_o) over the column: 1 where the column holds
+/// φ_o, else the larger of its two edges' (cos is unimodal on the circle).
+fn largest_cos_per_column(phi_o: f32, n: usize) -> Vec<f32> {
+    let width = TAU / n as f32;
+    (0..n)
+        .map(|k| {
+            let start = width * k as f32;
+            let inside = (phi_o - start).rem_euclid(TAU) <= width;
+            if inside {
+                1.0
+            } else {
+                (start - phi_o).cos().max((start + width - phi_o).cos())
+            }
+        })
+        .collect()
+}
+
+/// Whether some half vector h of a cell may reflect wo above the horizon:
+/// false only when a bound shows that none does. wi.z = 2 (wo·h) cos θ_h -
+/// cos θ_o, with wo·h <= sin θ_o sin θ_h c + cos θ_o cos θ_h, c the
+/// largest cos(φ_h - φ_o) over the cell (`largest_cos`), and the cell's
+/// θ_h range given by `(sin θ_lo, sin θ_hi, cos θ_lo)`. A margin of 1e-5
+/// covers the rounding of the pointwise test in [`incident_density`].
+#[inline]
+fn may_reflect_above(
+    (sin_o, cos_o): (f32, f32),
+    largest_cos: f32,
+    (sin_lo, sin_hi, cos_lo): (f32, f32, f32),
+) -> bool {
+    const MARGIN: f32 = 1e-5;
+    let sin_h = if largest_cos >= 0.0 { sin_hi } else { sin_lo };
+    let dot = sin_o * sin_h * largest_cos + cos_o * cos_lo;
+    dot > -MARGIN && 2.0 * dot.max(0.0) * cos_lo - cos_o > -MARGIN
 }
 
 /// The half-vector table for an arbitrary unit `wo`: `n_theta_h` rows of
@@ -612,6 +687,49 @@ mod tests {
     /// The support pass adds mass only where the centre tabulation has none,
     /// and little of it: on the isotropic resolution's grazing slice of a
     /// Lambertian surface, well under the table's own mass.
+    /// With several φ_o cells a slice keeps absolute φ_h and serves every
+    /// φ_o of its cell: a half vector that any wo of the cell (θ_o and φ_o
+    /// across it) reflects above the horizon has a positive cell. (The
+    /// first θ_o cell is left as tabulated; see [`tabulate_slice`].)
+    #[test]
+    fn every_half_vector_lit_across_a_phi_o_cell_has_a_positive_cell() {
+        let res = Resolution::new(4, 4, 32, 8).unwrap();
+        let mut checked = 0usize;
+        for i in 1..res.theta_o {
+            for j in [0, 1] {
+                let t = tabulate_slice(&Lambert, &res, i, j);
+                for s in 0..6 {
+                    let u = (i as f32 + (s as f32 + 0.5) / 6.0) / res.theta_o as f32;
+                    let theta_o = FRAC_PI_2 * u * u;
+                    for q in 0..6 {
+                        let width = TAU / res.phi_o as f32;
+                        let phi_o =
+                            phi_o_center(j, res.phi_o) + width * ((q as f32 + 0.5) / 6.0 - 0.5);
+                        let wo = spherical_direction(theta_o, phi_o);
+                        assert_eq!(crate::outgoing_cell(&res, wo), (i, j));
+                        for k in 0..32 {
+                            for l in 0..64 {
+                                let cos_i = (k as f32 + 0.5) / 32.0;
+                                let wi = spherical_direction(
+                                    cos_i.acos(),
+                                    TAU * (l as f32 + 0.5) / 64.0,
+                                );
+                                let h = (wo + wi).normalize();
+                                let (x, y) = crate::half_vector_cell(h, 0.0, 8, 32);
+                                assert!(
+                                    t[y * 8 + x] > 0.0,
+                                    "wo {wo:?}, wi {wi:?}: cell ({x}, {y}) of slice ({i}, {j}) is 0"
+                                );
+                                checked += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 3 * 2 * 36 * 32 * 64);
+    }
+
     #[test]
     fn the_support_pass_adds_little_mass() {
         let res = Resolution::ISOTROPIC;

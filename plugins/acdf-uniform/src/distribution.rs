@@ -163,29 +163,65 @@ fn cell_of(x: f32, n: usize, nf: f32) -> usize {
 fn build_cdf(values: impl Iterator<Item = f64>, cdf: &mut [f32]) -> f64 {
     let n = cdf.len();
     let mut running = Vec::with_capacity(n);
+    let mut positive = Vec::with_capacity(n);
     let mut total = 0.0f64;
     for v in values {
         total += v;
         running.push(total);
+        positive.push(v > 0.0);
     }
-    fill_cdf(&running, total, cdf);
+    fill_cdf(&running, total, cdf, |k| positive[k]);
     total
 }
 
 /// Normalise the running sums (the last of which is `total`) into `cdf`.
-fn fill_cdf(running: &[f64], total: f64, cdf: &mut [f32]) {
+///
+/// The result is what sampling relies on: non-decreasing, ending at exactly
+/// 1, and *strictly* increasing across every cell whose value is positive,
+/// flat across every cell whose value is 0. Rounding to `f32` would
+/// otherwise merge a cell holding less than about 6e-8 of its row into its
+/// neighbour, giving it density 0 where the integrand is positive (a
+/// near-mirror lobe's far cells, a grazing cell the horizon barely lights);
+/// such a cell keeps one ulp of the CDF instead, so it is drawn rarely but
+/// is drawn, and its pdf is positive.
+///
+/// `positive(k)` says whether cell k's value is positive: a difference of
+/// running sums cannot tell, since a cell below 1e-16 of the sum before it
+/// leaves the `f64` sum unchanged.
+fn fill_cdf(running: &[f64], total: f64, cdf: &mut [f32], positive: impl Fn(usize) -> bool) {
     let n = cdf.len();
-    if total > 0.0 && total.is_finite() {
-        for (c, &r) in cdf.iter_mut().zip(running) {
-            *c = (r / total) as f32;
-        }
-    } else {
+    if !(total > 0.0 && total.is_finite()) {
         for (k, c) in cdf.iter_mut().enumerate() {
             *c = ((k + 1) as f64 / n as f64) as f32;
         }
+        cdf[n - 1] = 1.0;
+        return;
     }
-    // Exactly 1 whatever the rounding, so every u < 1 finds a cell.
+    // Forward: round, then lift each positive cell's top one ulp above the
+    // entry before it where rounding made them equal.
+    let mut previous = 0.0f32;
+    for (k, c) in cdf.iter_mut().enumerate() {
+        let rounded = ((running[k] / total) as f32).min(1.0);
+        *c = if positive(k) {
+            rounded.max(previous.next_up())
+        } else {
+            previous
+        };
+        previous = *c;
+    }
+    // Backward: the top is exactly 1 (so that every u < 1 finds a cell);
+    // where the lifting above pushed entries to 1 or past the next one,
+    // step them down so that each positive cell keeps at least one ulp.
+    // Only a row of more than 2^23 cells could run out of room below 1.
     cdf[n - 1] = 1.0;
+    for k in (0..n - 1).rev() {
+        let above = cdf[k + 1];
+        cdf[k] = if positive(k + 1) {
+            cdf[k].min(above.next_down())
+        } else {
+            above
+        };
+    }
 }
 
 /// P_{k-1}, the stored CDF at the left edge of cell k (0 for k = 0),
@@ -492,7 +528,7 @@ impl PiecewiseConstant2D {
                 total += v as f64;
                 running.push(total);
             }
-            fill_cdf(&running, total, cdf);
+            fill_cdf(&running, total, cdf, |k| row[k] > 0.0);
             row_sums.push(total);
         }
         let mut marginal = vec![0.0f32; ny];

@@ -313,10 +313,15 @@ fn albedo_estimate_matches_the_reference() {
 
 /// At the centre of a φ_o cell the paper configuration tabulates the same
 /// wo as the isotropic one, on a φ_h grid rotated by a whole number of
-/// cells (16 φ_h cells, 8 φ_o cells), so the two pdfs agree up to f32
-/// rounding of the rotated directions: 1e-3 relative, for all but the rare
-/// wi whose recomputed half vector rounds across a cell boundary (at most
-/// 1%).
+/// cells (16 φ_h cells, 8 φ_o cells). The support pass then also gives a
+/// value to the cells that only the cell's other φ_o light, which the
+/// isotropic slice leaves at 0; that renormalises the rest by one common
+/// factor. So, over draws of the paper sampler: where the isotropic pdf is
+/// positive, the ratio p_iso / p_paper is that factor (within 1e-3 of the
+/// median ratio, for all but 1% of draws whose recomputed half vector
+/// rounds across a cell boundary), and the factor is at least 1 and below
+/// 1.15 (the support pass adds up to 11% of the mass at this coarse
+/// resolution, 45° φ_o cells; most at grazing θ_o cells).
 #[test]
 fn isotropic_and_paper_configurations_agree_at_cell_centres() {
     let u = uniform_pairs(4, 5000);
@@ -325,19 +330,24 @@ fn isotropic_and_paper_configurations_agree_at_cell_centres() {
         let paper = uniform(name, small_paper());
         for (i, j) in [(2, 3), (5, 6), (7, 1)] {
             let wo = slice_outgoing(&small_paper(), i, j);
-            let mut off = 0;
-            let mut n = 0;
-            for &u in &u {
-                let Some(b) = paper.sample(wo, u) else {
-                    continue;
-                };
-                n += 1;
-                let p = iso.pdf(wo, b.wi);
-                if (p - b.pdf).abs() > 1e-3 * b.pdf {
-                    off += 1;
-                }
-            }
-            println!("{name} ({i}, {j}): {off} of {n} differ by more than 1e-3");
+            let mut ratios: Vec<f32> = u
+                .iter()
+                .filter_map(|&u| paper.sample(wo, u))
+                .map(|b| iso.pdf(wo, b.wi) / b.pdf)
+                .filter(|&r| r > 0.0)
+                .collect();
+            let n = ratios.len();
+            ratios.sort_by(f32::total_cmp);
+            let factor = ratios[n / 2];
+            let off = ratios
+                .iter()
+                .filter(|&&r| (r - factor).abs() > 1e-3 * factor)
+                .count();
+            println!("{name} ({i}, {j}): factor {factor}, {off} of {n} differ by more than 1e-3");
+            assert!(
+                (1.0..1.15).contains(&factor),
+                "{name} ({i}, {j}): factor {factor}"
+            );
             assert!(
                 n > 4000 && off * 100 <= n,
                 "{name} ({i}, {j}): {off} of {n} differ"
@@ -348,12 +358,14 @@ fn isotropic_and_paper_configurations_agree_at_cell_centres() {
 
 /// Away from the φ_o centres the paper configuration uses the slice of the
 /// nearest centre (up to half a cell, 22.5° here, away) while the isotropic
-/// one rotates: the two differ by that discretisation only. Measured as
-/// the L1 distance ∫ |p_iso - p_paper| dω = E_iso |1 - p_paper / p_iso|
-/// over 20 000 iso draws; it is 0 at a centre and must stay below 0.35 for
-/// the Lambertian material half a cell away (the tolerance is the shift of
-/// the table by 22.5° of φ_o at θ_o = 0.7, whose effect we bound, not a
-/// statistical one).
+/// one rotates: the two differ by that discretisation. Measured as the L1
+/// distance ∫ |p_iso - p_paper| dω = E_iso |1 - p_paper / p_iso| over
+/// 20 000 iso draws, for the Lambertian material at θ_o = 0.7. At a centre
+/// it is the mass that the support pass gives to cells lit only from the
+/// cell's other φ_o (0.042 at this coarse resolution), under 0.06; half a
+/// cell away the table is shifted by 22.5° of φ_o, which must cost more
+/// than three times that and stay below 0.35 (bounds of the shift's
+/// effect, not statistical ones).
 #[test]
 fn isotropic_and_paper_configurations_differ_by_the_phi_o_cell() {
     let u = uniform_pairs(5, 20_000);
@@ -369,8 +381,8 @@ fn isotropic_and_paper_configurations_differ_by_the_phi_o_cell() {
     let centre = l1(spherical_direction(0.7, 2.0 * TAU / 8.0));
     let half_cell = l1(spherical_direction(0.7, 2.5 * TAU / 8.0 - 1e-3));
     println!("L1 distance iso vs paper: centre {centre:.4}, half a cell {half_cell:.4}");
-    assert!(centre < 0.01, "{centre}");
-    assert!(half_cell > centre && half_cell < 0.35, "{half_cell}");
+    assert!(centre < 0.06, "{centre}");
+    assert!(half_cell > 3.0 * centre && half_cell < 0.35, "{half_cell}");
 }
 
 #[test]

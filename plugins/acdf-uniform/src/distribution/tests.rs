@@ -220,6 +220,47 @@ fn huge_dynamic_range_stays_monotone_and_ends_at_one() {
     }
 }
 
+/// Every positive cell keeps a positive density and every zero cell none,
+/// however small the cell is against the rest: cells of 1e-30 after cells
+/// of 1 (lost even in the `f64` running sum), a tiny last cell (whose top
+/// must stay exactly 1), and rows of such tables in the marginal.
+#[test]
+fn positive_cells_keep_a_positive_density_whatever_their_share() {
+    let tables: [&[f32]; 4] = [
+        &[1.0, 1e-30, 0.0, 1.0, 1e-30],
+        &[1e-30, 1.0, 1e-20, 1e-30, 0.0, 0.0],
+        &[0.0, 1e-38, 0.0, 1.0],
+        &[1.0; 7],
+    ];
+    for values in tables {
+        let n = values.len();
+        let d = PiecewiseConstant1D::new(values).unwrap();
+        assert_eq!(*d.cdf().last().unwrap(), 1.0);
+        for (k, &v) in values.iter().enumerate() {
+            let pdf = d.pdf((k as f32 + 0.5) / n as f32);
+            assert_eq!(pdf > 0.0, v > 0.0, "{values:?}: cell {k} has pdf {pdf}");
+        }
+    }
+    // Rows 1 and 3 hold 1e-30 against rows of 1: the marginal keeps them.
+    let nx = 3;
+    let table = [
+        1.0, 1.0, 1.0, 0.0, 1e-30, 0.0, 1.0, 0.0, 1.0, 1e-30, 0.0, 1e-35,
+    ];
+    let d = PiecewiseConstant2D::new(&table, nx, 4).unwrap();
+    for (i, &v) in table.iter().enumerate() {
+        let p = Vec2::new(
+            ((i % nx) as f32 + 0.5) / nx as f32,
+            ((i / nx) as f32 + 0.5) / 4.0,
+        );
+        assert_eq!(
+            d.pdf(p) > 0.0,
+            v > 0.0,
+            "cell {i} ({v}) has pdf {}",
+            d.pdf(p)
+        );
+    }
+}
+
 #[test]
 fn storage_counts_the_cdfs() {
     let d = PiecewiseConstant2D::new(&vec![1.0; 256 * 32], 32, 256).unwrap();
