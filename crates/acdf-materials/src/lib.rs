@@ -39,6 +39,11 @@ pub enum MaterialError {
         source: std::io::Error,
     },
 
+    /// Writing a file failed or was refused, or reading it hit a bound
+    /// ([`acdf_core::fsio`]).
+    #[error("{0}")]
+    File(#[from] acdf_core::fsio::FsError),
+
     /// A MERL file with no bytes at all.
     #[error("{}: the file is empty (a MERL table starts with a 12-byte header)", .path.display())]
     EmptyFile { path: PathBuf },

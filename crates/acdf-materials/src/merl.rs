@@ -399,12 +399,13 @@ impl MerlTable {
         out.flush()
     }
 
-    /// Write the table as a MERL `.binary` file (see [`MerlTable::write_to`]).
+    /// Write the table as a MERL `.binary` file (see [`MerlTable::write_to`]),
+    /// atomically ([`acdf_core::fsio::write_atomic`]): an interrupted or
+    /// failed write leaves the previous file.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), MaterialError> {
-        let path = path.as_ref();
-        let file = std::fs::File::create(path).map_err(|e| io_error(path, e))?;
-        self.write_to(std::io::BufWriter::new(file))
-            .map_err(|e| io_error(path, e))
+        Ok(acdf_core::fsio::write_atomic(path.as_ref(), |w| {
+            self.write_to(w)
+        })?)
     }
 
     /// Rename the table (it starts as the file stem, or the tabulated BRDF's name).

@@ -38,8 +38,8 @@
 //! never a panic.
 
 use crate::{Resolution, SliceBuilder, TabulatedBrdfSampler};
+use acdf_core::fsio::{write_atomic, FsError};
 use acdf_core::{Brdf, Rgb, Vec3};
-use std::io::Write;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -62,6 +62,9 @@ pub enum PersistError {
         path: String,
         source: std::io::Error,
     },
+    /// Writing the file failed or was refused ([`acdf_core::fsio`]).
+    #[error("{0}")]
+    File(#[from] FsError),
     /// The first 8 bytes are not [`MAGIC`]: not a sampler file.
     #[error("not an acdf sampler file (bad magic bytes)")]
     BadMagic,
@@ -287,34 +290,6 @@ pub fn open(bytes: &[u8]) -> Result<&[u8], PersistError> {
     Ok(&bytes[header..end])
 }
 
-/// Write `bytes` to `path` atomically: into a temporary file in the same
-/// directory, flushed to disk, then renamed over `path`. An interrupted write
-/// leaves at most a stray temporary file, never a half file under `path`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PersistError> {
-    let io = |source| PersistError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-    // The temporary file is private (0600); the saved file is an ordinary
-    // one, readable by others as files written with `std::fs::write` are.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(io)?;
-    }
-    tmp.write_all(bytes).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
-}
-
 /// Read a whole file, naming it in the error.
 pub fn read_file(path: &Path) -> Result<Vec<u8>, PersistError> {
     std::fs::read(path).map_err(|source| PersistError::Io {
@@ -433,9 +408,10 @@ where
         Ok(seal(&w.into_bytes()))
     }
 
-    /// Save to `path` atomically (see [`write_atomic`]).
+    /// Save to `path` atomically ([`acdf_core::fsio::write_atomic`]).
     pub fn save(&self, path: &Path) -> Result<(), PersistError> {
-        write_atomic(path, &self.to_bytes()?)
+        let bytes = self.to_bytes()?;
+        Ok(write_atomic(path, |w| w.write_all(&bytes))?)
     }
 
     /// Read a sampler from a file image, checking everything (see the module

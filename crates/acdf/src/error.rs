@@ -58,6 +58,11 @@ pub enum Error {
         source: std::io::Error,
     },
 
+    /// Writing a file failed or was refused, or reading one hit a bound
+    /// ([`acdf_core::fsio`]); the message names the file.
+    #[error("{0}")]
+    File(#[from] acdf_core::fsio::FsError),
+
     /// Reading or writing standard streams.
     #[error("i/o: {0}")]
     Stream(#[from] std::io::Error),

@@ -143,10 +143,11 @@ pub fn bake_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Resul
     Ok(acdf_materials::nbrdf::bake(material.brdf.as_ref()))
 }
 
-/// Write a baked table, mapping errors to the facade's.
+/// Write a baked table (atomically), mapping errors to the facade's: a
+/// failure to write names the output file, not a material.
 pub fn write_merl(table: &MerlTable, path: &Path) -> Result<()> {
-    table.write(path).map_err(|e| Error::Material {
-        spec: path.display().to_string(),
-        message: e.to_string().replace('\n', " "),
+    table.write(path).map_err(|e| match e {
+        acdf_materials::MaterialError::File(e) => Error::File(e),
+        e => Error::io(path, std::io::Error::other(e.to_string())),
     })
 }

@@ -199,13 +199,16 @@ pub fn stdout() -> BufWriter<std::io::StdoutLock<'static>> {
     BufWriter::new(std::io::stdout().lock())
 }
 
-/// Write `value` as pretty JSON to `path`, creating its directory.
+/// Write `value` as pretty JSON to `path` (atomically), creating its
+/// directory.
 pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let text = serde_json::to_string_pretty(value)?;
-    std::fs::write(path, text + "\n").map_err(|e| Error::io(path, e))
+    let text = serde_json::to_string_pretty(value)? + "\n";
+    Ok(acdf_core::fsio::write_atomic(path, |w| {
+        w.write_all(text.as_bytes())
+    })?)
 }
 
 /// Read `x,y,z` lines from stdin (further columns, blank lines, `#`

@@ -142,10 +142,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let composite = acdf::plot::side_by_side(&panels)?;
     let side = a.out.join(format!("{}-side-by-side.png", scene.label));
-    composite.save(&side).map_err(|e| Error::Image {
-        path: side.clone(),
-        message: e.to_string(),
-    })?;
+    acdf::plot::write_png(&side, &composite)?;
     written.push(side);
     scene.print_results(&results)?;
     for p in written {
@@ -240,10 +237,7 @@ impl Scene<'_> {
             .a
             .out
             .join(format!("{}-{}.png", self.label, file_stem_safe(name)));
-        img.save(&path).map_err(|e| Error::Image {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
+        acdf::plot::write_png(&path, &img)?;
         Ok((path, img))
     }
 
