@@ -36,7 +36,7 @@ pub mod sampler;
 pub mod search;
 pub mod warp;
 
-pub use brdf::{luminance, Brdf, Rgb, LUMINANCE_WEIGHTS};
+pub use brdf::{fingerprint_by_eval, luminance, Brdf, Fingerprinter, Rgb, LUMINANCE_WEIGHTS};
 pub use distribution::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Sample1D, Sample2D,
     ONE_MINUS_EPSILON,

@@ -63,8 +63,8 @@ pub enum Error {
     #[error("{0}")]
     File(#[from] acdf_core::fsio::FsError),
 
-    /// Reading or writing standard streams.
-    #[error("i/o: {0}")]
+    /// Writing standard output failed (a closed pipe, a full disk).
+    #[error("cannot write to standard output: {0}")]
     Stream(#[from] std::io::Error),
 
     /// Decoding or encoding an image.
