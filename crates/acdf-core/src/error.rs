@@ -44,7 +44,7 @@ pub enum Error {
     /// An allocation whose estimated size exceeds the memory limit
     /// ([`crate::limits`]).
     #[error(
-        "{what} needs about {} ({bytes} bytes), more than the memory limit of {} (acdf --memory-limit raises it)",
+        "{what} would take about {} ({bytes} bytes), more than the memory limit of {} (acdf --memory-limit raises it)",
         crate::limits::format_bytes(*bytes),
         crate::limits::format_bytes(*limit)
     )]

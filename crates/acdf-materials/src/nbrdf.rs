@@ -95,7 +95,7 @@ impl NbrdfLibrary {
     /// The error for a weight file of `got` bytes with `count` names.
     fn size_error(got: u64, count: usize, path: &Path) -> Result<NbrdfLibrary, MaterialError> {
         let record_bytes = 4 * WEIGHTS_PER_MATERIAL as u64;
-        if got == 0 || got % record_bytes != 0 {
+        if got == 0 || !got.is_multiple_of(record_bytes) {
             return Err(MaterialError::WeightFileSize {
                 path: path.to_owned(),
                 expected: count as u64 * record_bytes,
@@ -239,7 +239,7 @@ impl NeuralBrdf {
             z_bound: 0.0,
         };
         let z_bound = network.output_bound();
-        if !(z_bound <= MAX_OUTPUT_EXPONENT) {
+        if z_bound.is_nan() || z_bound > MAX_OUTPUT_EXPONENT {
             return Err(MaterialError::NetworkOverflow {
                 material: name.to_owned(),
                 bound: z_bound,

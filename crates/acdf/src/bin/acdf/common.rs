@@ -9,7 +9,7 @@ use acdf::efficiency::EfficiencyConfig;
 use acdf::error::{Error, Result};
 use acdf::material::{load_material, Material};
 use acdf::registry::{
-    load_sampler, make_sampler_spec, sampler_help, sampler_long_help, AnySampler, SamplerOps,
+    load_sampler_for, make_sampler_spec, sampler_help, sampler_long_help, AnySampler,
     SamplerOptions,
 };
 use acdf::spec::{parse_direction_line, MaterialSpec, SamplerSpec, DIRECTION_FIELDS};
@@ -63,9 +63,10 @@ pub struct TableArgs {
     /// Use the paper's resolution 32x16x256x32.
     #[arg(long)]
     pub paper: bool,
-    /// Probability of drawing from the cosine lobe instead of the table.
-    #[arg(long, value_name = "A", default_value_t = 0.0)]
-    pub cosine_mix: f32,
+    /// Probability of drawing from the cosine lobe instead of the table
+    /// (default 0).
+    #[arg(long, value_name = "A")]
+    pub cosine_mix: Option<f32>,
 }
 
 impl TableArgs {
@@ -94,7 +95,7 @@ impl TableArgs {
         Ok(SamplerOptions {
             resolution,
             tolerance: self.tolerance,
-            cosine_mix: self.cosine_mix,
+            cosine_mix: self.cosine_mix.unwrap_or(0.0),
         })
     }
 }
@@ -177,21 +178,28 @@ pub fn material(args: &MaterialArgs) -> Result<Material> {
 }
 
 /// The sampler `--sampler` names, or the one `--sampler-file` holds (which
-/// must have been built for `material`).
+/// must have been built for a material of the same content as `material`,
+/// and fixes the options of its tables: giving one is an error).
 pub fn sampler(args: &SamplerArgs, material: &Material) -> Result<AnySampler> {
     let Some(path) = &args.sampler_file else {
         let spec: SamplerSpec = args.sampler.parse()?;
         return make_sampler_spec(spec, material, &args.tables.options()?);
     };
-    let loaded = load_sampler(path)?;
-    match loaded.material_name() {
-        Some(name) if name != material.brdf.name() => Err(Error::Incompatible {
-            sampler: path.display().to_string(),
-            material: material.spec.to_string(),
-            reason: format!("the file was built for material `{name}`"),
-        }),
-        _ => Ok(loaded),
+    let t = &args.tables;
+    for (given, option) in [
+        (t.tolerance.is_some(), "--tolerance"),
+        (t.resolution.is_some(), "--resolution"),
+        (t.paper, "--paper"),
+        (t.cosine_mix.is_some(), "--cosine-mix"),
+    ] {
+        if given {
+            return Err(Error::FixedBySamplerFile {
+                option,
+                path: path.clone(),
+            });
+        }
     }
+    load_sampler_for(path, material)
 }
 
 /// Buffered, locked standard output.

@@ -86,7 +86,7 @@ pub fn run(a: Args) -> Result<()> {
         tolerance: None,
         resolution: a.resolution.clone(),
         paper: a.paper,
-        cosine_mix: 0.0,
+        cosine_mix: None,
     };
     let options = tables.options()?;
     let measure = MeasureArgs {
