@@ -21,7 +21,7 @@ pub enum Error {
     },
 
     /// NaN or an infinity in a table.
-    #[error("{what}: value {value} at index {index} is not finite")]
+    #[error("{what}: value {value:?} at index {index} is not finite")]
     NonFinite {
         what: &'static str,
         index: usize,
@@ -29,7 +29,7 @@ pub enum Error {
     },
 
     /// A negative value in a table that must be a non-negative density.
-    #[error("{what}: value {value} at index {index} is negative")]
+    #[error("{what}: value {value:?} at index {index} is negative")]
     Negative {
         what: &'static str,
         index: usize,
@@ -40,6 +40,24 @@ pub enum Error {
     /// is negative or NaN, a mixing fraction outside [0, 1], ...).
     #[error("invalid parameter `{name}`: {reason}")]
     InvalidParameter { name: &'static str, reason: String },
+
+    /// An allocation whose estimated size exceeds the memory limit
+    /// ([`crate::limits`]).
+    #[error(
+        "{what} would take about {} ({bytes} bytes), more than the memory limit of {} (acdf --memory-limit raises it)",
+        crate::limits::format_bytes(*bytes),
+        crate::limits::format_bytes(*limit)
+    )]
+    MemoryLimit {
+        what: String,
+        bytes: u64,
+        limit: u64,
+    },
+
+    /// A material that is zero everywhere asked to be importance sampled:
+    /// there is nothing to sample in proportion to.
+    #[error("material `{material}` is zero everywhere (every value of its table is 0 or unmeasured): there is nothing to importance-sample")]
+    ZeroMaterial { material: String },
 }
 
 /// `Result` with the crate's [`Error`].

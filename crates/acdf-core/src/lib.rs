@@ -7,7 +7,9 @@
 //! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
 //! their SIMD-lane form for batches in `search::lanes`), with the one place
 //! that detects the CPU features they choose their code by (`cpu`);
-//! and the one error type. It holds no sampler and no data format, so that
+//! the one routine every written file goes through and the bounded reading
+//! of input files (`fsio`), with the memory limit that every allocation
+//! sized by input is checked against (`limits`); and the one error type. It holds no sampler and no data format, so that
 //! plug-ins and material readers depend on this small crate (the tabulated
 //! plug-ins also on `acdf-tabulated`) and never on each other.
 //!
@@ -27,12 +29,14 @@ pub mod cpu;
 pub mod distribution;
 pub mod error;
 pub mod fast;
+pub mod fsio;
 pub mod geometry;
+pub mod limits;
 pub mod sampler;
 pub mod search;
 pub mod warp;
 
-pub use brdf::{luminance, Brdf, Rgb, LUMINANCE_WEIGHTS};
+pub use brdf::{fingerprint_by_eval, luminance, Brdf, Fingerprinter, Rgb, LUMINANCE_WEIGHTS};
 pub use distribution::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Sample1D, Sample2D,
     ONE_MINUS_EPSILON,

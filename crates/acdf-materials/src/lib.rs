@@ -39,6 +39,16 @@ pub enum MaterialError {
         source: std::io::Error,
     },
 
+    /// Writing a file failed or was refused, or reading it hit a bound
+    /// ([`acdf_core::fsio`]).
+    #[error("{0}")]
+    File(#[from] acdf_core::fsio::FsError),
+
+    /// A size or an allocation beyond the memory limit, or a parameter
+    /// check of `acdf-core`.
+    #[error("{0}")]
+    Core(#[from] acdf_core::Error),
+
     /// A MERL file with no bytes at all.
     #[error("{}: the file is empty (a MERL table starts with a 12-byte header)", .path.display())]
     EmptyFile { path: PathBuf },
@@ -76,7 +86,7 @@ pub enum MaterialError {
     },
 
     /// NaN or an infinity in the data.
-    #[error("{}: the {channel} value {value} at index {index} is not finite", .path.display())]
+    #[error("{}: the {channel} value {value:?} at index {index} is not finite", .path.display())]
     NonFiniteValue {
         path: PathBuf,
         channel: char,
@@ -85,7 +95,7 @@ pub enum MaterialError {
     },
 
     /// A finite value whose calibrated magnitude does not fit in an `f32`.
-    #[error("{}: the {channel} value {value} at index {index} is too large for an f32 table", .path.display())]
+    #[error("{}: the {channel} value {value:?} at index {index} is too large for an f32 table", .path.display())]
     ValueOutOfRange {
         path: PathBuf,
         channel: char,
@@ -122,6 +132,11 @@ pub enum MaterialError {
         index: usize,
         value: f32,
     },
+
+    /// A network whose output may overflow an `f32`: its weights are not
+    /// a fitted BRDF.
+    #[error("material `{material}`: the network's output can reach exp({bound:.4e}), beyond the f32 range (the exponent must stay below 88.7); the weights are not a fitted BRDF")]
+    NetworkOverflow { material: String, bound: f64 },
 
     /// A model parameter outside its domain.
     #[error("invalid parameter `{name}`: {reason}")]

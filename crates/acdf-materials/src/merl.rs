@@ -162,34 +162,28 @@ impl std::fmt::Debug for MerlTable {
     }
 }
 
-fn io_error(path: &Path, source: std::io::Error) -> MaterialError {
-    MaterialError::Io {
-        path: path.to_owned(),
-        source,
-    }
-}
-
 fn name_from_path(path: &Path) -> String {
     path.file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "merl".to_owned())
 }
 
-/// Check the header and the length of a MERL file's bytes; `origin` names
-/// the file in errors.
-fn check_layout(bytes: &[u8], origin: &Path) -> Result<(), MaterialError> {
+/// Check the header (the first 12 bytes, or fewer when the file is that
+/// short) and return the file length it implies; `origin` names the file
+/// in errors.
+fn check_header(header: &[u8], origin: &Path) -> Result<u64, MaterialError> {
     let path = || origin.to_owned();
-    if bytes.is_empty() {
+    if header.is_empty() {
         return Err(MaterialError::EmptyFile { path: path() });
     }
-    if bytes.len() < 12 {
+    if header.len() < 12 {
         return Err(MaterialError::ShortHeader {
             path: path(),
-            len: bytes.len(),
+            len: header.len(),
         });
     }
     let mut dims = [0i32; 3];
-    for (d, chunk) in dims.iter_mut().zip(bytes[..12].chunks_exact(4)) {
+    for (d, chunk) in dims.iter_mut().zip(header[..12].chunks_exact(4)) {
         *d = i32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
     }
     if dims.iter().any(|&d| d < 0) {
@@ -205,7 +199,12 @@ fn check_layout(bytes: &[u8], origin: &Path) -> Result<(), MaterialError> {
     if dims != DIMENSIONS {
         return Err(MaterialError::WrongDimensions { path: path(), dims });
     }
-    let got = bytes.len() as u64;
+    Ok(expected)
+}
+
+/// Compare a file's length with the one its header implies.
+fn check_length(expected: u64, got: u64, origin: &Path) -> Result<(), MaterialError> {
+    let path = || origin.to_owned();
     if got < expected {
         return Err(MaterialError::Truncated {
             path: path(),
@@ -223,14 +222,40 @@ fn check_layout(bytes: &[u8], origin: &Path) -> Result<(), MaterialError> {
     Ok(())
 }
 
+/// Check the header and the length of a MERL file's bytes; `origin` names
+/// the file in errors.
+fn check_layout(bytes: &[u8], origin: &Path) -> Result<(), MaterialError> {
+    let expected = check_header(&bytes[..bytes.len().min(12)], origin)?;
+    check_length(expected, bytes.len() as u64, origin)
+}
+
+/// Bytes of memory a table takes while it is read: the file and the
+/// values, the bit set of unmeasured entries and the luminance plane.
+const READ_BYTES: u64 = FILE_LEN + 4 * (3 * PLANE_LEN as u64) + 4 * PLANE_LEN as u64;
+
 impl MerlTable {
     /// Read a MERL `.binary` file; the table is named after the file stem.
     ///
-    /// Reads the whole file at once and converts it in one pass, so a 35 MB
-    /// file loads in a small fraction of a second.
+    /// The 12-byte header is read and checked first, then the size it
+    /// implies is compared with the file's (for a regular file, from its
+    /// metadata, before the body is read; a pipe or device is read no
+    /// further than that size), and only then is the body read, whole, and
+    /// converted in one pass: a 35 MB file loads in a small fraction of a
+    /// second, and `/dev/zero` is refused after 12 bytes.
     pub fn read(path: impl AsRef<Path>) -> Result<MerlTable, MaterialError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|e| io_error(path, e))?;
+        let mut input = acdf_core::fsio::Input::open(path)?;
+        let mut bytes = input.read_up_to(12)?;
+        let expected = check_header(&bytes, path)?;
+        if let Some(len) = input.len() {
+            check_length(expected, len, path)?;
+        }
+        acdf_core::limits::check_memory(
+            &format!("reading MERL table {}", path.display()),
+            READ_BYTES,
+        )?;
+        let body = input.read_rest(expected - 12, "the size its header gives")?;
+        bytes.extend_from_slice(&body);
         Self::from_bytes(&bytes, path)
     }
 
@@ -399,12 +424,13 @@ impl MerlTable {
         out.flush()
     }
 
-    /// Write the table as a MERL `.binary` file (see [`MerlTable::write_to`]).
+    /// Write the table as a MERL `.binary` file (see [`MerlTable::write_to`]),
+    /// atomically ([`acdf_core::fsio::write_atomic`]): an interrupted or
+    /// failed write leaves the previous file.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), MaterialError> {
-        let path = path.as_ref();
-        let file = std::fs::File::create(path).map_err(|e| io_error(path, e))?;
-        self.write_to(std::io::BufWriter::new(file))
-            .map_err(|e| io_error(path, e))
+        Ok(acdf_core::fsio::write_atomic(path.as_ref(), |w| {
+            self.write_to(w)
+        })?)
     }
 
     /// Rename the table (it starts as the file stem, or the tabulated BRDF's name).
@@ -729,6 +755,25 @@ impl Brdf for MerlTable {
         true
     }
 
+    /// The hash of every value, the unmeasured entries and the lookup, so a
+    /// table read back from a file acdf wrote has the fingerprint of the
+    /// table written.
+    fn fingerprint(&self) -> u64 {
+        let mut h = acdf_core::Fingerprinter::new();
+        h.bytes(b"merl");
+        h.bytes(&[self.interpolation as u8]);
+        h.f32s(&self.values);
+        for word in &self.unmeasured {
+            h.u64(*word);
+        }
+        h.finish()
+    }
+
+    /// Every entry (unmeasured ones filled) is 0.
+    fn is_zero_everywhere(&self) -> bool {
+        self.values.iter().all(|&v| v == 0.0)
+    }
+
     /// The ring of [`Brdf::luminance_half_ring`] read from a plane of
     /// luminances by the table's [`Interpolation`], with the angles of
     /// [`MerlTable::eval`] computed from wo and each half vector directly
@@ -970,7 +1015,7 @@ mod tests {
             messages.push(msg);
         }
         let missing = MerlTable::read("/nonexistent/dir/missing.binary").unwrap_err();
-        assert!(matches!(missing, E::Io { .. }));
+        assert!(matches!(missing, E::File(_)), "{missing:?}");
         assert!(missing.to_string().contains("missing.binary"));
         messages.push(missing.to_string());
         let mut unique = messages.clone();

@@ -31,6 +31,11 @@ pub const WEIGHTS_FILE: &str = "merl_nbrdf_weights.f32";
 pub const NAMES_FILE: &str = "merl_nbrdf_materials.txt";
 /// Name of the data directory under [`crate::shared_data_dir`].
 pub const DATA_DIR: &str = "merl-neural-brdf";
+/// The largest list of material names read (1 MiB; the MERL list is 1.8 KB).
+pub const MAX_NAMES_BYTES: u64 = 1 << 20;
+/// The largest network output z accepted: f_r = exp(z) − 1 must fit in an
+/// `f32` (ln(f32::MAX) ≈ 88.72).
+pub const MAX_OUTPUT_EXPONENT: f64 = 88.72;
 
 const HIDDEN: usize = 21;
 const INPUTS: usize = 6;
@@ -53,17 +58,56 @@ impl NbrdfLibrary {
     /// Load `merl_nbrdf_weights.f32` and `merl_nbrdf_materials.txt` from `dir`.
     pub fn load(dir: impl AsRef<Path>) -> Result<NbrdfLibrary, MaterialError> {
         let dir = dir.as_ref();
-        let weights_path = dir.join(WEIGHTS_FILE);
-        let names_path = dir.join(NAMES_FILE);
-        let weights = std::fs::read(&weights_path).map_err(|source| MaterialError::Io {
-            path: weights_path.clone(),
-            source,
-        })?;
-        let names = std::fs::read(&names_path).map_err(|source| MaterialError::Io {
-            path: names_path.clone(),
-            source,
-        })?;
-        Self::from_bytes(&weights, &String::from_utf8_lossy(&names), &weights_path)
+        Self::read_files(&dir.join(WEIGHTS_FILE), &dir.join(NAMES_FILE))
+    }
+
+    /// Load a weight file and its list of names. The names are read first
+    /// (at most [`MAX_NAMES_BYTES`]); they fix the size of the weight file,
+    /// which is compared with the file's before its body is read, and a
+    /// pipe or device is read no further than that size.
+    pub fn read_files(
+        weights_path: &Path,
+        names_path: &Path,
+    ) -> Result<NbrdfLibrary, MaterialError> {
+        let names = acdf_core::fsio::read_bounded(
+            names_path,
+            MAX_NAMES_BYTES,
+            "the size of a list of material names",
+        )?;
+        let names = String::from_utf8_lossy(&names);
+        let count = names.lines().filter(|l| !l.trim().is_empty()).count();
+        let record_bytes = 4 * WEIGHTS_PER_MATERIAL as u64;
+        let expected = count as u64 * record_bytes;
+        let mut input = acdf_core::fsio::Input::open(weights_path)?;
+        if let Some(len) = input.len() {
+            if len != expected {
+                return Self::size_error(len, count, weights_path);
+            }
+        }
+        acdf_core::limits::check_memory(
+            &format!("reading Neural-BRDF weights {}", weights_path.display()),
+            expected,
+        )?;
+        let weights = input.read_rest(expected, "the size its list of names gives")?;
+        Self::from_bytes(&weights, &names, weights_path)
+    }
+
+    /// The error for a weight file of `got` bytes with `count` names.
+    fn size_error(got: u64, count: usize, path: &Path) -> Result<NbrdfLibrary, MaterialError> {
+        let record_bytes = 4 * WEIGHTS_PER_MATERIAL as u64;
+        if got == 0 || !got.is_multiple_of(record_bytes) {
+            return Err(MaterialError::WeightFileSize {
+                path: path.to_owned(),
+                expected: count as u64 * record_bytes,
+                got,
+                records: count,
+            });
+        }
+        Err(MaterialError::NameCountMismatch {
+            path: path.to_owned(),
+            names: count,
+            records: (got / record_bytes) as usize,
+        })
     }
 
     /// Load the library from `<shared data>/merl-neural-brdf`
@@ -152,6 +196,8 @@ pub struct NeuralBrdf {
     name: String,
     /// The 675 weights in file order, widened exactly from `f32`.
     w: Box<[f64; WEIGHTS_PER_MATERIAL]>,
+    /// [`NeuralBrdf::output_bound`], at most [`MAX_OUTPUT_EXPONENT`].
+    z_bound: f64,
 }
 
 impl std::fmt::Debug for NeuralBrdf {
@@ -187,10 +233,60 @@ impl NeuralBrdf {
             }
             *out = v as f64;
         }
-        Ok(NeuralBrdf {
+        let network = NeuralBrdf {
             name: name.to_owned(),
             w,
-        })
+            z_bound: 0.0,
+        };
+        let z_bound = network.output_bound();
+        if z_bound.is_nan() || z_bound > MAX_OUTPUT_EXPONENT {
+            return Err(MaterialError::NetworkOverflow {
+                material: name.to_owned(),
+                bound: z_bound,
+            });
+        }
+        Ok(NeuralBrdf { z_bound, ..network })
+    }
+
+    /// An upper bound of the network's pre-activation output z over every
+    /// input its angles produce (x_0, x_2, x_5 in [0, 1], x_1 = 0, x_3 and
+    /// x_4 in [-1, 1]), by interval arithmetic through the layers: f_r is
+    /// at most exp(bound) − 1 in every channel. The 100 MERL fits stay
+    /// below 46.
+    pub fn output_bound(&self) -> f64 {
+        let w = &self.w;
+        let layer = |inputs: &[(f64, f64)], weights: usize, bias: usize, outputs: usize| {
+            (0..outputs)
+                .map(|j| {
+                    let (mut lo, mut hi) = (w[bias + j], w[bias + j]);
+                    for (i, &(a, b)) in inputs.iter().enumerate() {
+                        let wij = w[weights + i * outputs + j];
+                        lo += (wij * a).min(wij * b);
+                        hi += (wij * a).max(wij * b);
+                    }
+                    (lo, hi)
+                })
+                .collect::<Vec<_>>()
+        };
+        let relu = |v: Vec<(f64, f64)>| -> Vec<(f64, f64)> {
+            v.into_iter()
+                .map(|(a, b)| (a.max(0.0), b.max(0.0)))
+                .collect()
+        };
+        let x = [
+            (0.0, 1.0),
+            (0.0, 0.0),
+            (0.0, 1.0),
+            (-1.0, 1.0),
+            (-1.0, 1.0),
+            (0.0, 1.0),
+        ];
+        let h1 = relu(layer(&x, W1, B1, HIDDEN));
+        let h2 = relu(layer(&h1, W2, B2, HIDDEN));
+        let z = layer(&h2, W3, B3, 3);
+        z.iter()
+            .map(|&(_, hi)| hi)
+            .fold(f64::NEG_INFINITY, f64::max)
     }
 
     /// The network at input x = (hx, hy, hz, dx, dy, dz):
@@ -288,6 +384,19 @@ impl Brdf for NeuralBrdf {
 
     fn is_isotropic(&self) -> bool {
         true
+    }
+
+    /// The hash of the 675 weights.
+    fn fingerprint(&self) -> u64 {
+        let mut h = acdf_core::Fingerprinter::new();
+        h.bytes(b"nbrdf");
+        h.f64s(&self.w[..]);
+        h.finish()
+    }
+
+    /// The output bound is at most 0, so exp(z) − 1 ≤ 0 everywhere.
+    fn is_zero_everywhere(&self) -> bool {
+        self.z_bound <= 0.0
     }
 }
 
@@ -547,7 +656,7 @@ mod tests {
         assert!(err.to_string().contains("a, b"), "{err}");
 
         let missing = NbrdfLibrary::load("/nonexistent/nbrdf").unwrap_err();
-        assert!(matches!(missing, MaterialError::Io { .. }));
+        assert!(matches!(missing, MaterialError::File(_)), "{missing:?}");
         assert!(matches!(
             NeuralBrdf::from_weights("x", &[0.0; 10]),
             Err(MaterialError::InvalidParameter { .. })
@@ -556,9 +665,9 @@ mod tests {
 
     #[test]
     fn network_output_is_finite_and_non_negative_for_any_input() {
-        // Weights of alternating sign and size 10 drive z far both ways.
+        // Weights of alternating sign drive z both ways, within f32 range.
         let weights: Vec<f32> = (0..WEIGHTS_PER_MATERIAL)
-            .map(|i| if i % 2 == 0 { 10.0 } else { -7.0 })
+            .map(|i| if i % 2 == 0 { 0.3 } else { -0.2 })
             .collect();
         let net = NeuralBrdf::from_weights("wild", &weights).unwrap();
         for x in [[1e30f64; 6], [f64::NAN; 6], [-1e30; 6], [0.0; 6]] {
@@ -568,5 +677,33 @@ mod tests {
         let f = net.eval(Vec3::Z, Vec3::new(0.1, 0.0, 1.0));
         assert!(f.is_finite() && f.min_element() >= 0.0);
         assert_eq!(net.eval(-Vec3::Z, Vec3::Z), Rgb::ZERO);
+    }
+
+    /// Finding 11 of issue 29: a network whose output overflows f32 is
+    /// refused by name (it made `eval` print f32::MAX and `bake` write -1
+    /// everywhere); one whose output is bounded by 0 is zero everywhere.
+    #[test]
+    fn networks_that_overflow_f32_are_refused_and_zero_ones_known() {
+        let large: Vec<f32> = (0..WEIGHTS_PER_MATERIAL).map(|_| 30.0).collect();
+        let err = NeuralBrdf::from_weights("overflowing", &large).unwrap_err();
+        assert!(
+            matches!(&err, MaterialError::NetworkOverflow { material, .. } if material == "overflowing"),
+            "{err}"
+        );
+        assert!(err.to_string().contains("overflowing"), "{err}");
+        let zero = NeuralBrdf::from_weights("zero", &[0.0; WEIGHTS_PER_MATERIAL]).unwrap();
+        assert!(zero.is_zero_everywhere());
+        assert_eq!(zero.eval(Vec3::Z, Vec3::new(0.2, 0.0, 1.0)), Rgb::ZERO);
+        let mut one = [0.0f32; WEIGHTS_PER_MATERIAL];
+        one[B3] = 0.5;
+        let positive = NeuralBrdf::from_weights("positive", &one).unwrap();
+        assert!(!positive.is_zero_everywhere());
+        assert_ne!(positive.fingerprint(), zero.fingerprint());
+        let Some(lib) = library() else { return };
+        for name in lib.names() {
+            let net = lib.material(name).unwrap();
+            assert!(net.output_bound() < 50.0, "{name}: {}", net.output_bound());
+            assert!(!net.is_zero_everywhere(), "{name}");
+        }
     }
 }

@@ -116,6 +116,16 @@ pub enum RglError {
         len: u64,
         file_len: u64,
     },
+    /// A field's data overlaps the header or another field.
+    #[error("field `{field}`: its data at offset {offset} overlaps {other}")]
+    Overlap {
+        field: String,
+        offset: u64,
+        other: String,
+    },
+    /// Reading the file hit a bound or failed ([`acdf_core::fsio`]).
+    #[error("{0}")]
+    File(#[from] acdf_core::fsio::FsError),
     /// A field the evaluation needs is absent.
     #[error("missing field `{0}`")]
     MissingField(String),
@@ -144,7 +154,7 @@ impl RglError {
     /// Attach the file name (once).
     pub(crate) fn in_file(self, path: &Path) -> RglError {
         match self {
-            e @ (RglError::InFile { .. } | RglError::Io { .. }) => e,
+            e @ (RglError::InFile { .. } | RglError::Io { .. } | RglError::File(_)) => e,
             e => RglError::InFile {
                 path: path.to_path_buf(),
                 error: Box::new(e),
@@ -206,6 +216,8 @@ pub struct RglLookup {
 #[derive(Debug, Clone)]
 pub struct RglBrdf {
     name: String,
+    /// The hash of every field evaluation reads.
+    fingerprint: u64,
     description: String,
     phi_i: Vec<f32>,
     theta_i: Vec<f32>,
@@ -263,6 +275,42 @@ fn invalid(field: &str) -> impl Fn(acdf_core::Error) -> RglError + '_ {
     }
 }
 
+/// Every value of `field` in [lo, hi] (with a relative margin of 1e-6 for
+/// the f32 rounding of the bounds), named in the error as `range`.
+fn within(field: &str, values: &[f32], lo: f64, hi: f64, range: &str) -> Result<(), RglError> {
+    let margin = 1e-6 * lo.abs().max(hi.abs());
+    match values
+        .iter()
+        .enumerate()
+        .find(|(_, &v)| !((v as f64) >= lo - margin && (v as f64) <= hi + margin))
+    {
+        Some((index, v)) => Err(RglError::Invalid {
+            field: field.into(),
+            reason: format!("value {v:?} at index {index} is outside {range}"),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Some value of each slice of `per` values is positive: a table (or slice)
+/// of zeros describes no material.
+fn not_all_zero(field: &str, values: &[f32], per: usize) -> Result<(), RglError> {
+    for (slice, chunk) in values.chunks(per.max(1)).enumerate() {
+        if !chunk.iter().any(|&v| v > 0.0) {
+            let what = if chunk.len() == values.len() {
+                "every value".to_string()
+            } else {
+                format!("every value of slice {slice}")
+            };
+            return Err(RglError::Invalid {
+                field: field.into(),
+                reason: format!("{what} is zero or negative: the table describes no material"),
+            });
+        }
+    }
+    Ok(())
+}
+
 fn increasing_axis(field: &str, values: Vec<f32>) -> Result<Vec<f32>, RglError> {
     if values.is_empty() || values.windows(2).any(|w| w[1] <= w[0]) {
         return Err(RglError::Invalid {
@@ -298,11 +346,22 @@ impl RglBrdf {
         let (_, theta_i) = float_field(file, "theta_i", 1)?;
         let phi_i = increasing_axis("phi_i", phi_i)?;
         let theta_i = increasing_axis("theta_i", theta_i)?;
+        within("theta_i", &theta_i, 0.0, FRAC_PI_2, "[0, π/2] rad")?;
+        within("phi_i", &phi_i, -TAU, TAU, "[-2π, 2π] rad")?;
         let (np, nt) = (phi_i.len(), theta_i.len());
         let slices = np * nt;
 
         let grid = |field: &str| -> Result<BilinearGrid, RglError> {
             let (shape, values) = float_field(file, field, 2)?;
+            // The projected area and the NDF are non-negative and not zero
+            // everywhere; sigma divides f_r.
+            if let Some((index, v)) = values.iter().enumerate().find(|(_, &v)| v < 0.0) {
+                return Err(RglError::Invalid {
+                    field: field.into(),
+                    reason: format!("value {v:?} at index {index} is negative"),
+                });
+            }
+            not_all_zero(field, &values, values.len())?;
             BilinearGrid::new(1, shape[1], shape[0], values).map_err(invalid(field))
         };
         let sigma = grid("sigma")?;
@@ -328,6 +387,9 @@ impl RglBrdf {
             // negative, so they count as zero, which moves the normalisation
             // by far less than f32 rounding.
             let values: Vec<f32> = values.into_iter().map(|v| v.max(0.0)).collect();
+            // An all-zero slice would be replaced by the uniform density
+            // without a word.
+            not_all_zero(field, &values, nx * ny)?;
             let s = BilinearStack::new(slices, nx, ny, &values).map_err(invalid(field))?;
             Ok((s, nx, ny))
         };
@@ -343,7 +405,30 @@ impl RglBrdf {
                 ),
             ));
         }
+        not_all_zero("rgb", &values, values.len())?;
         let rgb = BilinearGrid::new(slices * 3, nx, ny, values).map_err(invalid("rgb"))?;
+
+        // The material's content: every field evaluation reads.
+        let mut h = acdf_core::Fingerprinter::new();
+        h.bytes(b"rgl");
+        for field in [
+            "phi_i",
+            "theta_i",
+            "sigma",
+            "ndf",
+            "vndf",
+            "luminance",
+            "rgb",
+        ] {
+            let f = file.require(field)?;
+            h.bytes(field.as_bytes());
+            h.bytes(&[f.dtype.code()]);
+            for &n in &f.shape {
+                h.u64(n as u64);
+            }
+            h.bytes(f.bytes());
+        }
+        let fingerprint = h.finish();
 
         let description = file
             .field("description")
@@ -351,6 +436,7 @@ impl RglBrdf {
             .unwrap_or_default();
         Ok(RglBrdf {
             name: name.to_string(),
+            fingerprint,
             description,
             isotropic: np <= 2,
             phi_i,
@@ -543,5 +629,11 @@ impl Brdf for RglBrdf {
 
     fn is_isotropic(&self) -> bool {
         self.isotropic
+    }
+
+    /// The hash of the file's fields that evaluation reads (not its name or
+    /// description).
+    fn fingerprint(&self) -> u64 {
+        self.fingerprint
     }
 }

@@ -24,30 +24,36 @@
 //! `uniform` or `adaptive`), the sampler name (`string`, e.g.
 //! `uniform` or `adaptive:dp`), the builder's parameters (written by the
 //! builder, see [`Persist`]), the material name (`string`), whether it is
-//! isotropic (u8, 0 or 1), the resolution (4 × u32: θ_o, φ_o, θ_h, φ_h; one
+//! isotropic (u8, 0 or 1), the material's fingerprint (u64,
+//! [`Brdf::fingerprint`]: a loaded sampler is used only with a material of
+//! the same content), the resolution (4 × u32: θ_o, φ_o, θ_h, φ_h; one
 //! φ_o cell means φ_h is relative to φ_o), the cosine mixing fraction (f32),
 //! the slice count (u32, equal to θ_o × φ_o), then every slice's distribution
 //! (written by [`Persist::encode`]), θ_o-major. All slices are built before saving, so a loaded
 //! sampler never needs its BRDF.
 //!
 //! # Checks on load
-//! Magic, version (a newer version is its own error), exact length, checksum,
+//! Reading a file takes its 20-byte header first and compares the length
+//! it announces with the file's (and with the memory limit) before the rest
+//! is read. Then: magic, version (a newer version and version 1, which
+//! recorded no fingerprint, are their own errors), exact length, checksum,
 //! then every field: each length is checked against the bytes that remain
 //! *before* anything is allocated, and each decoded table is validated as a
 //! constructor would validate it. Any byte string gives a [`PersistError`],
 //! never a panic.
 
 use crate::{Resolution, SliceBuilder, TabulatedBrdfSampler};
+use acdf_core::fsio::{write_atomic, FsError};
 use acdf_core::{Brdf, Rgb, Vec3};
-use std::io::Write;
 use std::path::Path;
 use std::sync::Arc;
 
 /// Magic bytes at the start of every sampler file.
 pub const MAGIC: [u8; 8] = *b"ACDFSMP\0";
 
-/// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The format version this build writes and reads (2: with the material's
+/// fingerprint; version 1 files are refused with a request to rebuild).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// Bytes of the envelope around the body: magic, version, body length and
 /// checksum.
@@ -62,6 +68,10 @@ pub enum PersistError {
         path: String,
         source: std::io::Error,
     },
+    /// Writing or reading the file failed, was refused or hit a bound
+    /// ([`acdf_core::fsio`]).
+    #[error("{0}")]
+    File(#[from] FsError),
     /// The first 8 bytes are not [`MAGIC`]: not a sampler file.
     #[error("not an acdf sampler file (bad magic bytes)")]
     BadMagic,
@@ -71,6 +81,10 @@ pub enum PersistError {
     /// A version number this build never wrote (0).
     #[error("sampler file format version {0} is not valid")]
     BadVersion(u32),
+    /// Written by an older acdf, in a format that records no fingerprint of
+    /// the material.
+    #[error("sampler file format version {found} records no fingerprint of its material and is no longer read; rebuild the file with `acdf build` (format {supported})")]
+    OldVersion { found: u32, supported: u32 },
     /// The file is shorter than its header says.
     #[error("truncated: the header announces {expected} bytes, the file has {found}")]
     Truncated { expected: u64, found: u64 },
@@ -91,8 +105,14 @@ pub enum PersistError {
     #[error("field `{field}` is invalid: {reason}")]
     Invalid { field: &'static str, reason: String },
     /// The file holds a different kind of sampler than the one asked for.
-    #[error("the file holds a `{found}` sampler, expected {expected}")]
+    #[error(
+        "the file holds a sampler of kind {found:?}, but it was read as a {expected:?} sampler"
+    )]
     WrongKind { found: String, expected: String },
+    /// A size beyond the memory limit, or a stored value its constructor
+    /// refuses.
+    #[error("{0}")]
+    Limit(acdf_core::Error),
     /// A decoded table fails the checks its constructor makes.
     #[error("stored table is invalid: {0}")]
     Table(#[from] acdf_core::Error),
@@ -118,6 +138,9 @@ impl ByteWriter {
         self.bytes.extend_from_slice(&v.to_le_bytes());
     }
     pub fn f64(&mut self, v: f64) {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    pub fn u64(&mut self, v: u64) {
         self.bytes.extend_from_slice(&v.to_le_bytes());
     }
     /// A length as u32; tables in acdf never approach 2^32 elements.
@@ -184,6 +207,10 @@ impl<'a> ByteReader<'a> {
         let b = self.take(field, 8)?;
         Ok(f64::from_le_bytes(b.try_into().expect("8 bytes")))
     }
+    pub fn u64(&mut self, field: &'static str) -> Result<u64, PersistError> {
+        let b = self.take(field, 8)?;
+        Ok(u64::from_le_bytes(b.try_into().expect("8 bytes")))
+    }
     /// A u32 count of elements of `elem_bytes` each, checked against the bytes
     /// that remain so that a corrupt count never drives an allocation.
     pub fn count(&mut self, field: &'static str, elem_bytes: usize) -> Result<usize, PersistError> {
@@ -245,13 +272,16 @@ pub fn seal(body: &[u8]) -> Vec<u8> {
     out
 }
 
-/// Check the envelope of `bytes` and return the body.
-pub fn open(bytes: &[u8]) -> Result<&[u8], PersistError> {
-    let header = 8 + 4 + 8;
+/// Bytes of the header: magic, version and body length.
+const HEADER_BYTES: usize = 8 + 4 + 8;
+
+/// Check the header (the first [`HEADER_BYTES`] bytes of a file, or all of
+/// a shorter one) and return the file length it announces.
+fn check_header(bytes: &[u8]) -> Result<u64, PersistError> {
     if bytes.len() < 8 || bytes[..8] != MAGIC {
         return Err(PersistError::BadMagic);
     }
-    if bytes.len() < header {
+    if bytes.len() < HEADER_BYTES {
         return Err(PersistError::Truncated {
             expected: ENVELOPE_BYTES as u64,
             found: bytes.len() as u64,
@@ -267,8 +297,21 @@ pub fn open(bytes: &[u8]) -> Result<&[u8], PersistError> {
     if version == 0 {
         return Err(PersistError::BadVersion(version));
     }
+    if version < FORMAT_VERSION {
+        return Err(PersistError::OldVersion {
+            found: version,
+            supported: FORMAT_VERSION,
+        });
+    }
     let body_len = u64::from_le_bytes(bytes[12..20].try_into().expect("8 bytes"));
-    let expected = body_len.saturating_add(ENVELOPE_BYTES as u64);
+    Ok(body_len.saturating_add(ENVELOPE_BYTES as u64))
+}
+
+/// Check the envelope of `bytes` and return the body.
+pub fn open(bytes: &[u8]) -> Result<&[u8], PersistError> {
+    let header = HEADER_BYTES;
+    let expected = check_header(&bytes[..bytes.len().min(HEADER_BYTES)])?;
+    let body_len = expected - ENVELOPE_BYTES as u64;
     let found = bytes.len() as u64;
     if found < expected {
         return Err(PersistError::Truncated { expected, found });
@@ -287,40 +330,31 @@ pub fn open(bytes: &[u8]) -> Result<&[u8], PersistError> {
     Ok(&bytes[header..end])
 }
 
-/// Write `bytes` to `path` atomically: into a temporary file in the same
-/// directory, flushed to disk, then renamed over `path`. An interrupted write
-/// leaves at most a stray temporary file, never a half file under `path`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PersistError> {
-    let io = |source| PersistError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-    // The temporary file is private (0600); the saved file is an ordinary
-    // one, readable by others as files written with `std::fs::write` are.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(io)?;
-    }
-    tmp.write_all(bytes).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
-}
-
-/// Read a whole file, naming it in the error.
+/// Read a whole sampler file: its header first, whose announced length is
+/// compared with the file's size and with the memory limit before the rest
+/// is read (a pipe or device is read no further than that length).
 pub fn read_file(path: &Path) -> Result<Vec<u8>, PersistError> {
-    std::fs::read(path).map_err(|source| PersistError::Io {
-        path: path.display().to_string(),
-        source,
-    })
+    let mut input = acdf_core::fsio::Input::open(path)?;
+    let mut bytes = input.read_up_to(HEADER_BYTES)?;
+    let expected = check_header(&bytes)?;
+    if let Some(found) = input.len() {
+        if found < expected {
+            return Err(PersistError::Truncated { expected, found });
+        }
+        if found > expected {
+            return Err(PersistError::TrailingBytes {
+                extra: found - expected,
+            });
+        }
+    }
+    acdf_core::limits::check_memory(
+        &format!("reading sampler file {}", path.display()),
+        expected.saturating_mul(2),
+    )
+    .map_err(PersistError::Limit)?;
+    let rest = input.read_rest(expected - bytes.len() as u64, "the length its header gives")?;
+    bytes.extend_from_slice(&rest);
+    Ok(bytes)
 }
 
 #[cfg(test)]
@@ -352,11 +386,19 @@ mod tests {
             assert!(open(&file[..len]).is_err());
         }
         let mut future = file.clone();
-        future[8..12].copy_from_slice(&2u32.to_le_bytes());
+        future[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
         assert!(matches!(
             open(&future),
-            Err(PersistError::FutureVersion { found: 2, .. })
+            Err(PersistError::FutureVersion { .. })
         ));
+        let mut old = file.clone();
+        old[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let err = open(&old).unwrap_err();
+        assert!(
+            matches!(err, PersistError::OldVersion { found: 1, .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("rebuild"), "{err}");
     }
 
     #[test]
@@ -378,13 +420,16 @@ pub trait PersistBuilder: SliceBuilder + Persist {
     const KIND: &'static str;
 }
 
-/// The material of a sampler read from a file: its name and isotropy, as
-/// recorded when it was saved. Every slice of such a sampler is built, so
-/// the BRDF itself is never evaluated; `eval` returns zero.
+/// The material of a sampler read from a file: its name, isotropy and
+/// fingerprint, as recorded when it was saved. Every slice of such a
+/// sampler is built, so the BRDF itself is never evaluated; `eval` returns
+/// zero.
 #[derive(Debug, Clone)]
 pub struct StoredMaterial {
     pub name: String,
     pub isotropic: bool,
+    /// [`Brdf::fingerprint`] of the material the sampler was built from.
+    pub fingerprint: u64,
 }
 
 impl Brdf for StoredMaterial {
@@ -396,6 +441,9 @@ impl Brdf for StoredMaterial {
     }
     fn is_isotropic(&self) -> bool {
         self.isotropic
+    }
+    fn fingerprint(&self) -> u64 {
+        self.fingerprint
     }
 }
 
@@ -420,6 +468,7 @@ where
         self.builder().encode(&mut w);
         w.string(self.brdf().name());
         w.u8(self.brdf().is_isotropic() as u8);
+        w.u64(self.brdf().fingerprint());
         let r = self.resolution();
         for n in [r.theta_o, r.phi_o, r.theta_h, r.phi_h] {
             w.length(n);
@@ -433,9 +482,10 @@ where
         Ok(seal(&w.into_bytes()))
     }
 
-    /// Save to `path` atomically (see [`write_atomic`]).
+    /// Save to `path` atomically ([`acdf_core::fsio::write_atomic`]).
     pub fn save(&self, path: &Path) -> Result<(), PersistError> {
-        write_atomic(path, &self.to_bytes()?)
+        let bytes = self.to_bytes()?;
+        Ok(write_atomic(path, |w| w.write_all(&bytes))?)
     }
 
     /// Read a sampler from a file image, checking everything (see the module
@@ -471,6 +521,7 @@ where
                 })
             }
         };
+        let fingerprint = r.u64("fingerprint")?;
         let mut counts = [0usize; 4];
         for c in &mut counts {
             *c = r.u32("resolution")? as usize;
@@ -494,9 +545,15 @@ where
         let brdf = Arc::new(StoredMaterial {
             name: material,
             isotropic,
+            fingerprint,
         });
-        Ok(Self::from_built_slices(brdf, resolution, builder, slices)?
-            .with_cosine_mix(cosine_mix)?)
+        let limit_or_table = |e| match e {
+            e @ acdf_core::Error::MemoryLimit { .. } => PersistError::Limit(e),
+            e => PersistError::Table(e),
+        };
+        Self::from_built_slices(brdf, resolution, builder, slices)
+            .and_then(|s| s.with_cosine_mix(cosine_mix))
+            .map_err(limit_or_table)
     }
 
     /// Load a sampler saved with [`save`](Self::save).

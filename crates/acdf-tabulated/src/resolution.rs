@@ -21,6 +21,12 @@ const MAX_SLICES: usize = 1 << 16;
 /// Largest accepted number of half-vector cells θ_h·φ_h per slice.
 const MAX_SLICE_CELLS: usize = 1 << 22;
 
+/// The memory estimate per tabulated cell of a sampler: the uniform
+/// family keeps one `f32` of CDF per cell, an adaptive one at most two
+/// (a position and a value per kept vertex), and building a slice holds a
+/// table of one `f32` per cell; 8 bytes bounds the sum for every family.
+pub const BYTES_PER_CELL: u64 = 8;
+
 impl Resolution {
     /// The configuration of Lawrence et al. (2005): 32 θ_o × 16 φ_o slices of
     /// 256 θ_h × 32 φ_h cells.
@@ -85,6 +91,15 @@ impl Resolution {
     /// The number of half-vector cells per slice θ_h·φ_h.
     pub fn cells_per_slice(&self) -> usize {
         self.theta_h * self.phi_h
+    }
+
+    /// Bytes a sampler at this resolution may take, estimated before any
+    /// table is built: [`BYTES_PER_CELL`] per tabulated cell of every
+    /// slice. Saturates instead of overflowing.
+    pub fn memory_estimate(&self) -> u64 {
+        (self.slices() as u64)
+            .saturating_mul(self.cells_per_slice() as u64)
+            .saturating_mul(BYTES_PER_CELL)
     }
 }
 

@@ -22,7 +22,7 @@ pub enum Error {
 
     /// A sampler file records a kind of sampler that no family of the
     /// registry reads; `known` lists the kinds that are read.
-    #[error("sampler file {}: unknown sampler kind `{kind}`; the known kinds are {known}", path.display())]
+    #[error("sampler file {}: unknown sampler kind {kind:?}; the known kinds are {known}", path.display())]
     UnknownSamplerKind {
         path: PathBuf,
         kind: String,
@@ -37,6 +37,25 @@ pub enum Error {
         material: String,
         reason: String,
     },
+
+    /// A sampler without tables asked to be saved to a file.
+    #[error("sampler `{sampler}` has no tables to save: only tabulated samplers ({kinds}) are saved to files")]
+    NotSaveable { sampler: String, kinds: String },
+
+    /// A saved sampler offered for a material other than the one it was
+    /// built from (compared by content, [`acdf_core::Brdf::fingerprint`]).
+    #[error("sampler file {} was built for material `{recorded}` (fingerprint {recorded_fingerprint:016x}), but `{material}` has other content (fingerprint {fingerprint:016x}); build a sampler for it with `acdf build`", path.display())]
+    SamplerMaterialMismatch {
+        path: PathBuf,
+        recorded: String,
+        recorded_fingerprint: u64,
+        material: String,
+        fingerprint: u64,
+    },
+
+    /// An option that a saved sampler fixes, given with `--sampler-file`.
+    #[error("{option} cannot be used with --sampler-file: the saved sampler {} fixes it; rebuild the file with `acdf build {option} ...` to change it", path.display())]
+    FixedBySamplerFile { option: &'static str, path: PathBuf },
 
     /// A command-line value that parses but is out of its domain, or does
     /// not parse.
@@ -58,8 +77,13 @@ pub enum Error {
         source: std::io::Error,
     },
 
-    /// Reading or writing standard streams.
-    #[error("i/o: {0}")]
+    /// Writing a file failed or was refused, or reading one hit a bound
+    /// ([`acdf_core::fsio`]); the message names the file.
+    #[error("{0}")]
+    File(#[from] acdf_core::fsio::FsError),
+
+    /// Writing standard output failed (a closed pipe, a full disk).
+    #[error("cannot write to standard output: {0}")]
     Stream(#[from] std::io::Error),
 
     /// Decoding or encoding an image.

@@ -51,6 +51,19 @@ fn material_error(spec: &MaterialSpec, e: impl std::fmt::Display) -> Error {
     }
 }
 
+/// The error of picking a network from a library: a name the library lacks
+/// is an unknown material, anything else (non-finite weights, an output
+/// that overflows) an error of that material.
+fn network_error(spec: &MaterialSpec, e: acdf_materials::MaterialError) -> Error {
+    match e {
+        acdf_materials::MaterialError::UnknownMaterial { .. } => Error::UnknownMaterial {
+            spec: spec.to_string(),
+            reason: e.to_string(),
+        },
+        e => material_error(spec, e),
+    }
+}
+
 /// Where the Neural-BRDF weights are: `explicit` if given, else
 /// [`DEFAULT_NBRDF_WEIGHTS`] if it exists, else the shared data directory of
 /// `acdf_materials::shared_data_dir`.
@@ -72,14 +85,11 @@ pub fn load_nbrdf_library(path: &Path) -> std::result::Result<NbrdfLibrary, Stri
     if path.is_dir() {
         return NbrdfLibrary::load(path).map_err(|e| e.to_string());
     }
-    let weights = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let names_path = path
         .parent()
         .unwrap_or_else(|| Path::new("."))
         .join(NAMES_FILE);
-    let names = std::fs::read_to_string(&names_path)
-        .map_err(|e| format!("{}: {e}", names_path.display()))?;
-    NbrdfLibrary::from_bytes(&weights, &names, path).map_err(|e| e.to_string())
+    NbrdfLibrary::read_files(path, &names_path).map_err(|e| e.to_string())
 }
 
 /// Load the material `spec` names. `nbrdf_weights` overrides where
@@ -111,10 +121,7 @@ pub fn load_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Resul
                 )
             })?;
             let library = load_nbrdf_library(&path).map_err(|e| material_error(spec, e))?;
-            let network = library.material(name).map_err(|e| Error::UnknownMaterial {
-                spec: spec.to_string(),
-                reason: e.to_string(),
-            })?;
+            let network = library.material(name).map_err(|e| network_error(spec, e))?;
             (Arc::new(network), None)
         }
     };
@@ -126,27 +133,31 @@ pub fn load_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Resul
 }
 
 /// Bake a material into a MERL table: Neural-BRDF networks are evaluated at
-/// the exact grid angles, every other BRDF is tabulated with the MERL rule
-/// that marks grid points below the horizon unmeasured.
+/// the exact grid angles, a MERL table is read as it is (so baking it
+/// reproduces its table exactly), every other BRDF is tabulated with the
+/// MERL rule that marks grid points below the horizon unmeasured.
 pub fn bake_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Result<MerlTable> {
     if let MaterialSpec::Nbrdf(name) = spec {
         let path = nbrdf_weights_path(nbrdf_weights)
             .ok_or_else(|| material_error(spec, "no Neural-BRDF weights: pass --nbrdf-weights"))?;
         let library = load_nbrdf_library(&path).map_err(|e| material_error(spec, e))?;
-        let network = library.material(name).map_err(|e| Error::UnknownMaterial {
-            spec: spec.to_string(),
-            reason: e.to_string(),
-        })?;
+        let network = library.material(name).map_err(|e| network_error(spec, e))?;
         return Ok(network.bake());
+    }
+    // A MERL table is its own baking: the file is read back as it is, so
+    // writing it reproduces every value and unmeasured entry.
+    if let MaterialSpec::Merl(path) = spec {
+        return MerlTable::read(path).map_err(|e| material_error(spec, e));
     }
     let material = load_material(spec, nbrdf_weights)?;
     Ok(acdf_materials::nbrdf::bake(material.brdf.as_ref()))
 }
 
-/// Write a baked table, mapping errors to the facade's.
+/// Write a baked table (atomically), mapping errors to the facade's: a
+/// failure to write names the output file, not a material.
 pub fn write_merl(table: &MerlTable, path: &Path) -> Result<()> {
-    table.write(path).map_err(|e| Error::Material {
-        spec: path.display().to_string(),
-        message: e.to_string().replace('\n', " "),
+    table.write(path).map_err(|e| match e {
+        acdf_materials::MaterialError::File(e) => Error::File(e),
+        e => Error::io(path, std::io::Error::other(e.to_string())),
     })
 }

@@ -193,15 +193,43 @@ where
 }
 
 /// Draw the figure as an SVG file and as a PNG file, 700 × 560 pixels per
-/// panel.
+/// panel. Both are drawn in memory and written atomically
+/// ([`acdf_core::fsio::write_atomic`]).
 pub fn plot_figure(figure: &Figure, svg: &Path, png: &Path) -> Result<()> {
     ensure_font()?;
     let size = (700 * figure.panels.len().max(1) as u32, 560u32);
-    draw_figure(SVGBackend::new(svg, size).into_drawing_area(), figure)
-        .map_err(|e| plot_error(svg, e))?;
-    draw_figure(BitMapBackend::new(png, size).into_drawing_area(), figure)
-        .map_err(|e| plot_error(png, e))?;
-    Ok(())
+    let mut text = String::new();
+    draw_figure(
+        SVGBackend::with_string(&mut text, size).into_drawing_area(),
+        figure,
+    )
+    .map_err(|e| plot_error(svg, e))?;
+    acdf_core::fsio::write_atomic(svg, |w| w.write_all(text.as_bytes()))?;
+    let mut pixels = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    draw_figure(
+        BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area(),
+        figure,
+    )
+    .map_err(|e| plot_error(png, e))?;
+    let image = image::RgbImage::from_raw(size.0, size.1, pixels)
+        .ok_or_else(|| plot_error(png, "the drawn buffer does not match its size"))?;
+    write_png(png, &image)
+}
+
+/// Write an 8-bit RGB image as a PNG file, atomically
+/// ([`acdf_core::fsio::write_atomic`]).
+pub fn write_png(path: &Path, image: &image::RgbImage) -> Result<()> {
+    use image::ImageEncoder;
+    Ok(acdf_core::fsio::write_atomic(path, |w| {
+        image::codecs::png::PngEncoder::new(w)
+            .write_image(
+                image.as_raw(),
+                image.width(),
+                image.height(),
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(std::io::Error::other)
+    })?)
 }
 
 /// Put images side by side, left to right, with a caption strip above each.

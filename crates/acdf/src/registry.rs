@@ -22,7 +22,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
-use acdf_core::{BxdfSample, BxdfSampler, Vec2, Vec3};
+use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
 use acdf_rgl::RglSampler;
 use acdf_tabulated::persist::{self, PersistError};
@@ -84,6 +84,13 @@ pub trait SamplerOps {
         None
     }
 
+    /// The fingerprint ([`acdf_core::Brdf::fingerprint`]) of the material a
+    /// tabulated sampler was built for (for a sampler loaded from a file,
+    /// the one recorded in it); `None` for samplers without tables.
+    fn material_fingerprint(&self) -> Option<u64> {
+        None
+    }
+
     /// For adaptive samplers, (mean marginal vertices, mean conditional
     /// vertices) over the slices built so far.
     fn mean_vertices(&self) -> Option<(f64, f64)> {
@@ -116,6 +123,9 @@ impl SamplerOps for UniformBrdfSampler {
     fn material_name(&self) -> Option<&str> {
         Some(self.brdf().name())
     }
+    fn material_fingerprint(&self) -> Option<u64> {
+        Some(self.brdf().fingerprint())
+    }
     fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
         Some(self.save(path))
     }
@@ -132,6 +142,9 @@ impl SamplerOps for AdaptiveBrdfSampler {
     }
     fn material_name(&self) -> Option<&str> {
         Some(self.brdf().name())
+    }
+    fn material_fingerprint(&self) -> Option<u64> {
+        Some(self.brdf().fingerprint())
     }
     fn mean_vertices(&self) -> Option<(f64, f64)> {
         Some(average_resolution(self))
@@ -515,21 +528,49 @@ fn describe_set(
 /// Build every table of a tabulated sampler and save it to `path` in the
 /// sampler file format (`acdf_tabulated::persist`), so a renderer can load it
 /// without rebuilding. Samplers without tables have nothing to save and give
-/// [`Error::Incompatible`].
+/// [`Error::NotSaveable`]; a failure to write names the file.
 pub fn save_sampler(sampler: &AnySampler, path: &Path) -> Result<()> {
     match sampler.write_file(path) {
-        Some(written) => written.map_err(|source| Error::SamplerFile {
+        Some(written) => written.map_err(|source| match source {
+            PersistError::File(e) => Error::File(e),
+            source => Error::SamplerFile {
+                path: path.to_path_buf(),
+                source,
+            },
+        }),
+        None => Err(not_saveable(sampler.name())),
+    }
+}
+
+/// Whether the samplers `spec` names can be saved to a file.
+pub fn is_saveable(spec: &SamplerSpec) -> bool {
+    spec.family().file_kind.is_some()
+}
+
+/// The error for a sampler without a file format.
+pub fn not_saveable(sampler: &str) -> Error {
+    Error::NotSaveable {
+        sampler: sampler.to_string(),
+        kinds: file_kinds().join(", "),
+    }
+}
+
+/// Load a sampler saved by [`save_sampler`] for use with `material`: the
+/// fingerprint recorded in the file must be the material's
+/// ([`acdf_core::Brdf::fingerprint`]), whatever the names, or the result is
+/// [`Error::SamplerMaterialMismatch`].
+pub fn load_sampler_for(path: &Path, material: &Material) -> Result<AnySampler> {
+    let loaded = load_sampler(path)?;
+    let fingerprint = material.brdf.fingerprint();
+    match loaded.material_fingerprint() {
+        Some(recorded) if recorded != fingerprint => Err(Error::SamplerMaterialMismatch {
             path: path.to_path_buf(),
-            source,
+            recorded: loaded.material_name().unwrap_or("?").to_string(),
+            recorded_fingerprint: recorded,
+            material: material.spec.to_string(),
+            fingerprint,
         }),
-        None => Err(Error::Incompatible {
-            sampler: sampler.name().to_string(),
-            material: "-".into(),
-            reason: format!(
-                "only tabulated samplers ({}) are saved to files",
-                file_kinds().join(", ")
-            ),
-        }),
+        _ => Ok(loaded),
     }
 }
 
@@ -542,9 +583,12 @@ fn file_kinds() -> Vec<&'static str> {
 /// picks the family, and a kind no family reads is
 /// [`Error::UnknownSamplerKind`].
 pub fn load_sampler(path: &Path) -> Result<AnySampler> {
-    let file_error = |source| Error::SamplerFile {
-        path: path.to_path_buf(),
-        source,
+    let file_error = |source| match source {
+        PersistError::File(e) => Error::File(e),
+        source => Error::SamplerFile {
+            path: path.to_path_buf(),
+            source,
+        },
     };
     let bytes = persist::read_file(path).map_err(file_error)?;
     let kind = persist::peek_kind(&bytes).map_err(file_error)?;
@@ -641,7 +685,8 @@ mod tests {
         let path = dir.path().join("mystery.acdfs");
         let mut body = persist::ByteWriter::new();
         body.string("mystery");
-        persist::write_atomic(&path, &persist::seal(&body.into_bytes())).unwrap();
+        let bytes = persist::seal(&body.into_bytes());
+        std::fs::write(&path, bytes).unwrap();
         match load_sampler(&path) {
             Err(e @ Error::UnknownSamplerKind { .. }) => {
                 let text = e.to_string();

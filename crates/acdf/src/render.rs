@@ -56,6 +56,16 @@ fn pixel_seed(seed: u64, pass: u64, pixel: usize) -> u64 {
     h
 }
 
+/// Bytes a render of `width` × `height` pixels with `images` 8-bit
+/// images of that size kept (the compared samplers' and the composite)
+/// takes: the film's f64 RGB sums and the images. Saturates instead of
+/// overflowing; checked against the memory limit before rendering.
+pub fn render_memory_estimate(width: usize, height: usize, images: usize) -> u64 {
+    let pixels = (width as u64).saturating_mul(height as u64);
+    let per_pixel = std::mem::size_of::<DVec3>() as u64 + 3 * images as u64;
+    pixels.saturating_mul(per_pixel)
+}
+
 impl Film {
     /// A black film of `width` × `height` pixels with no samples.
     pub fn new(width: usize, height: usize) -> Film {

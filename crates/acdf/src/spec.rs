@@ -246,28 +246,110 @@ impl fmt::Display for SamplerSpec {
 }
 
 /// Parse `THETA_DEG,PHI_DEG` into a unit direction of the local frame.
+/// The angles are read and turned into a direction in `f64`, then narrowed,
+/// so that any θ below 90° (89.99999999 included) gives a direction above
+/// the horizon.
 pub fn parse_direction_degrees(s: &str) -> Result<acdf_core::Vec3, Error> {
-    let bad = |reason: &str| Error::InvalidArgument {
+    let bad = |reason: String| Error::InvalidArgument {
         what: "direction",
-        value: s.to_string(),
-        reason: reason.to_string(),
+        value: shorten(s),
+        reason,
     };
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     if parts.len() != 2 {
-        return Err(bad("expected THETA_DEG,PHI_DEG"));
+        return Err(bad(format!(
+            "expected THETA_DEG,PHI_DEG (two numbers), got {} fields",
+            parts.len()
+        )));
     }
-    let theta: f32 = parts[0].parse().map_err(|_| bad("theta is not a number"))?;
-    let phi: f32 = parts[1].parse().map_err(|_| bad("phi is not a number"))?;
-    if !theta.is_finite() || !phi.is_finite() {
-        return Err(bad("angles must be finite"));
-    }
+    let number = |name: &str, t: &str| -> Result<f64, Error> {
+        let v: f64 = t
+            .parse()
+            .map_err(|_| bad(format!("{name} `{}` is not a number", shorten(t))))?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(bad(format!(
+                "{name} `{}` is not a finite number",
+                shorten(t)
+            )))
+        }
+    };
+    let theta = number("theta", parts[0])?;
+    let phi = number("phi", parts[1])?;
     if !(0.0..90.0).contains(&theta) {
-        return Err(bad("theta must be in [0, 90) degrees (above the horizon)"));
+        return Err(bad(format!(
+            "theta {theta} is not in [0, 90) degrees (above the horizon)"
+        )));
     }
-    Ok(acdf_core::geometry::spherical_direction(
-        theta.to_radians(),
-        phi.to_radians(),
-    ))
+    let (sin_t, cos_t) = theta.to_radians().sin_cos();
+    let (sin_p, cos_p) = phi.to_radians().sin_cos();
+    Ok(direction_from_xyz(sin_t * cos_p, sin_t * sin_p, cos_t))
+}
+
+/// The unit direction along (x, y, z), computed in `f64` before it is
+/// narrowed to `f32`: any finite input works, 1e-30 and 1e300 alike (the
+/// components are scaled by the largest before normalising). The zero
+/// vector gives zero.
+pub fn direction_from_xyz(x: f64, y: f64, z: f64) -> acdf_core::Vec3 {
+    let largest = x.abs().max(y.abs()).max(z.abs());
+    if !(largest > 0.0 && largest.is_finite()) {
+        return acdf_core::Vec3::ZERO;
+    }
+    let v = glam::DVec3::new(x / largest, y / largest, z / largest);
+    (v / v.length()).as_vec3()
+}
+
+/// `s` for an error message: whole when short, otherwise its first 32
+/// characters and its length, so that a huge argument or line is not echoed.
+pub fn shorten(s: &str) -> String {
+    const SHOWN: usize = 32;
+    if s.chars().count() <= SHOWN {
+        return s.to_string();
+    }
+    let head: String = s.chars().take(SHOWN).collect();
+    format!("{head}... ({} bytes)", s.len())
+}
+
+/// The field count of a line of directions when no header names columns:
+/// `x,y,z`.
+pub const DIRECTION_FIELDS: usize = 3;
+
+/// One line of directions as `acdf pdf` and `acdf eval` read them: `None`
+/// for a blank line or a `#` comment; otherwise exactly `columns` comma-
+/// separated fields (3 unless a header line such as `acdf sample`'s
+/// `wi_x,wi_y,wi_z,pdf,valid` named more) whose first three are the finite
+/// numbers x, y, z, read as `f64`, giving the unit direction
+/// ([`direction_from_xyz`]). An error is the reason, for the caller to put
+/// beside the line number.
+pub fn parse_direction_line(line: &str, columns: usize) -> Result<Option<acdf_core::Vec3>, String> {
+    let t = line.trim();
+    if t.is_empty() || t.starts_with('#') {
+        return Ok(None);
+    }
+    let fields: Vec<&str> = t.split(',').map(str::trim).collect();
+    if fields.len() != columns {
+        return Err(format!(
+            "expected {columns} comma-separated fields ({}), got {}: `{}`",
+            if columns == DIRECTION_FIELDS {
+                "x,y,z".to_string()
+            } else {
+                format!("x,y,z and {} more, as the header names", columns - 3)
+            },
+            fields.len(),
+            shorten(t)
+        ));
+    }
+    let mut v = [0.0f64; 3];
+    for (slot, f) in v.iter_mut().zip(&fields) {
+        *slot = f
+            .parse()
+            .map_err(|_| format!("`{}` is not a number", shorten(f)))?;
+        if !slot.is_finite() {
+            return Err(format!("`{}` is not a finite number", shorten(f)));
+        }
+    }
+    Ok(Some(direction_from_xyz(v[0], v[1], v[2])))
 }
 
 #[cfg(test)]
@@ -313,6 +395,44 @@ mod tests {
                 Err(Error::UnknownSampler { .. })
             ));
         }
+    }
+
+    /// Finding 9 of issue 29: directions are read in f64 (1e-30 and 1e150
+    /// are valid components, 89.99999999° a valid angle) and a line must
+    /// have exactly its fields.
+    #[test]
+    fn directions_are_read_in_f64_and_lines_need_their_fields() {
+        let diagonal = acdf_core::Vec3::new(1.0, 0.0, 1.0).normalize();
+        for line in [
+            "1e-30,0,1e-30",
+            "1e150,0,1e150",
+            "1e-320,0,1e-320",
+            " 3 , 0 , 3 ",
+        ] {
+            let v = parse_direction_line(line, 3).unwrap().unwrap();
+            assert!((v - diagonal).length() < 1e-6, "{line}: {v}");
+        }
+        assert_eq!(
+            parse_direction_line("0,0,0", 3).unwrap(),
+            Some(acdf_core::Vec3::ZERO)
+        );
+        assert_eq!(parse_direction_line("  # note", 3).unwrap(), None);
+        for bad in [
+            "0,0,1,5",
+            "0,0,1,abc",
+            "0,0",
+            "0,0,inf",
+            "0,nan,1",
+            "1e999,0,1",
+        ] {
+            assert!(parse_direction_line(bad, 3).is_err(), "{bad}");
+        }
+        assert!(parse_direction_line("0,0,1,0.3,1", 5).is_ok());
+        let long = "9".repeat(10_000_000);
+        let e = parse_direction_line(&format!("{long},0"), 3).unwrap_err();
+        assert!(e.len() < 200, "the error echoes the whole token");
+        let wo = parse_direction_degrees("89.99999999,0").unwrap();
+        assert!(wo.z > 0.0 && acdf_core::is_valid_outgoing(wo), "{wo}");
     }
 
     #[test]

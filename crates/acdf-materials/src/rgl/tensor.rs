@@ -211,12 +211,24 @@ impl<'a> Reader<'a> {
 
 impl TensorFile {
     /// Read and parse the file at `path`; errors name the file.
+    ///
+    /// The magic string is read and checked before anything else, so that
+    /// `/dev/zero` or a file of another kind is refused after 12 bytes; the
+    /// rest is read up to the memory limit (a regular file larger than that
+    /// is refused from its size, before it is read).
     pub fn read(path: impl AsRef<Path>) -> Result<TensorFile, RglError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|source| RglError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let mut input = acdf_core::fsio::Input::open(path)?;
+        let mut bytes = input.read_up_to(TENSOR_MAGIC.len())?;
+        if bytes.as_slice() != TENSOR_MAGIC {
+            return Err(RglError::BadMagic.in_file(path));
+        }
+        let limit = acdf_core::limits::memory_limit();
+        let rest = input.read_rest(
+            limit / 2,
+            "half the memory limit (the tables take as much again; acdf --memory-limit raises it)",
+        )?;
+        bytes.extend_from_slice(&rest);
         let mut file = TensorFile::from_bytes(&bytes).map_err(|e| e.in_file(path))?;
         file.path = Some(path.to_path_buf());
         Ok(file)
@@ -307,6 +319,7 @@ impl TensorFile {
                 bytes: data,
             });
         }
+        check_layout(&fields, r.pos as u64)?;
         Ok(TensorFile {
             path: None,
             major,
@@ -340,6 +353,36 @@ impl TensorFile {
         self.field(name)
             .ok_or_else(|| RglError::MissingField(name.to_string()))
     }
+}
+
+/// Every field's data lies after the header (which ends at `header_end`)
+/// and no two fields share a byte: a block that points into the header or
+/// into another field is a corrupt or crafted file.
+fn check_layout(fields: &[TensorField], header_end: u64) -> Result<(), RglError> {
+    let mut blocks: Vec<(u64, u64, &str)> = fields
+        .iter()
+        .filter(|f| !f.bytes.is_empty())
+        .map(|f| (f.offset, f.offset + f.bytes.len() as u64, f.name.as_str()))
+        .collect();
+    if let Some(&(offset, _, name)) = blocks.iter().find(|b| b.0 < header_end) {
+        return Err(RglError::Overlap {
+            field: name.to_string(),
+            offset,
+            other: format!("the header (bytes 0 to {header_end})"),
+        });
+    }
+    blocks.sort_unstable();
+    for pair in blocks.windows(2) {
+        let ((_, end, first), (offset, _, second)) = (pair[0], pair[1]);
+        if offset < end {
+            return Err(RglError::Overlap {
+                field: second.to_string(),
+                offset,
+                other: format!("field `{first}` (which ends at byte {end})"),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Serialise fields into a version 1.0 tensor file, data blocks 8-byte

@@ -15,6 +15,11 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
 /// A small valid material: n_θ = 3 slices, 5 × 5 vndf, 4 × 4 luminance and
 /// RGB grids, with some negative RGB values.
 fn synthetic_bytes() -> Vec<u8> {
+    synthetic_bytes_with(|_, _| {})
+}
+
+/// [`synthetic_bytes`] after `change(name, values)` on each float field.
+fn synthetic_bytes_with(change: impl Fn(&str, &mut Vec<f32>)) -> Vec<u8> {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
     let (nt, vn, n) = (3usize, 5usize, 4usize);
     let theta: Vec<f32> = vec![0.0, 0.7, 1.5];
@@ -36,6 +41,21 @@ fn synthetic_bytes() -> Vec<u8> {
     let rgb: Vec<f32> = (0..nt * 3 * n * n)
         .map(|_| rng.random::<f32>() * 2.0 - 0.5)
         .collect();
+    let changed = |name: &str, mut v: Vec<f32>| {
+        change(name, &mut v);
+        v
+    };
+    let (theta, phi, sigma, ndf) = (
+        changed("theta_i", theta),
+        changed("phi_i", phi),
+        changed("sigma", sigma),
+        changed("ndf", ndf),
+    );
+    let (vndf, lum, rgb) = (
+        changed("vndf", vndf),
+        changed("luminance", lum),
+        changed("rgb", rgb),
+    );
     write_tensor_file(&[
         ("version", Dtype::U32, &[2], &[1, 0, 0, 0, 0, 0, 0, 0]),
         ("description", Dtype::U8, &[4], b"test"),
@@ -245,6 +265,91 @@ fn material_errors_name_the_field() {
     );
 }
 
+/// Finding 10 of issue 29: a field whose data overlaps the header or
+/// another field, angles outside their range and tables of zeros are typed
+/// errors (such files loaded and returned values like 2.6e33).
+#[test]
+fn overlapping_fields_wild_angles_and_zero_tables_are_refused() {
+    let good = synthetic_bytes();
+    let rgb_offset = TensorFile::from_bytes(&good)
+        .unwrap()
+        .field("rgb")
+        .unwrap()
+        .offset;
+    // The descriptor: name length, "rgb", dimension count, dtype, offset.
+    let name_at = good.windows(5).position(|w| w == b"\x03\x00rgb").unwrap() + 2;
+    let offset_at = name_at + 3 + 2 + 1;
+    assert_eq!(good[offset_at..offset_at + 8], rgb_offset.to_le_bytes());
+    for (offset, overlapped) in [(0u64, "the header"), (rgb_offset - 8, "field `luminance`")] {
+        let mut bad = good.clone();
+        bad[offset_at..offset_at + 8].copy_from_slice(&offset.to_le_bytes());
+        let e = TensorFile::from_bytes(&bad).unwrap_err();
+        assert!(
+            matches!(&e, RglError::Overlap { field, .. } if field == "rgb"),
+            "{e}"
+        );
+        assert!(e.to_string().contains(overlapped), "{e}");
+    }
+    let invalid = |bytes: Vec<u8>, field: &str| {
+        let e = RglBrdf::from_tensor(&TensorFile::from_bytes(&bytes).unwrap(), "bad").unwrap_err();
+        assert!(
+            matches!(&e, RglError::Invalid { field: f, .. } if f == field),
+            "{field}: {e}"
+        );
+    };
+    invalid(
+        synthetic_bytes_with(|n, v| {
+            if n == "theta_i" {
+                v[2] = 300.0
+            }
+        }),
+        "theta_i",
+    );
+    invalid(
+        synthetic_bytes_with(|n, v| {
+            if n == "theta_i" {
+                v[0] = -0.5
+            }
+        }),
+        "theta_i",
+    );
+    invalid(
+        synthetic_bytes_with(|n, v| {
+            if n == "phi_i" {
+                v[0] = 100.0
+            }
+        }),
+        "phi_i",
+    );
+    for field in ["vndf", "sigma", "luminance", "ndf", "rgb"] {
+        invalid(
+            synthetic_bytes_with(|n, v| {
+                if n == field {
+                    v.fill(0.0)
+                }
+            }),
+            field,
+        );
+    }
+    // One slice of zeros is enough to refuse a density.
+    invalid(
+        synthetic_bytes_with(|n, v| {
+            if n == "vndf" {
+                v[25..50].fill(0.0)
+            }
+        }),
+        "vndf",
+    );
+    invalid(
+        synthetic_bytes_with(|n, v| {
+            if n == "sigma" {
+                v[3] = -1.0
+            }
+        }),
+        "sigma",
+    );
+}
+
 #[test]
 fn errors_from_files_name_the_file() {
     let dir = tempfile::tempdir().unwrap();
@@ -254,7 +359,7 @@ fn errors_from_files_name_the_file() {
     assert!(matches!(e.kind(), RglError::BadMagic));
     assert!(e.to_string().contains("broken.bsdf"), "{e}");
     let e = RglBrdf::open(dir.path().join("missing.bsdf")).unwrap_err();
-    assert!(matches!(e, RglError::Io { .. }) && e.to_string().contains("missing.bsdf"));
+    assert!(matches!(e, RglError::File(_)) && e.to_string().contains("missing.bsdf"));
     let p = dir.path().join("good_one.bsdf");
     std::fs::write(&p, synthetic_bytes()).unwrap();
     let b = RglBrdf::open(&p).unwrap();

@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use acdf::error::{Error, Result};
 use acdf::registry::{
-    load_sampler, make_sampler_spec, sampler_help, sampler_long_help, save_sampler, SamplerOps,
+    is_saveable, load_sampler, make_sampler_spec, not_saveable, sampler_help, sampler_long_help,
+    save_sampler, SamplerOps,
 };
 use acdf::spec::SamplerSpec;
 use acdf_core::BxdfSampler;
@@ -37,8 +38,11 @@ pub struct Args {
 /// Build, save, and load back once to report the load time against the
 /// build time.
 pub fn run(a: Args) -> Result<()> {
-    let m = material(&a.material)?;
     let spec: SamplerSpec = a.sampler.parse()?;
+    if !is_saveable(&spec) {
+        return Err(not_saveable(&spec.to_string()));
+    }
+    let m = material(&a.material)?;
     let s = make_sampler_spec(spec, &m, &a.tables.options()?)?;
     let pb = spinner("building tables");
     let started = Instant::now();

@@ -1,7 +1,7 @@
 //! The argument groups several subcommands share (material, sampler,
 //! tables, measurement), and the helpers for progress and output.
 
-use std::io::{BufRead, BufWriter};
+use std::io::{BufRead, BufWriter, Read};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -9,10 +9,10 @@ use acdf::efficiency::EfficiencyConfig;
 use acdf::error::{Error, Result};
 use acdf::material::{load_material, Material};
 use acdf::registry::{
-    load_sampler, make_sampler_spec, sampler_help, sampler_long_help, AnySampler, SamplerOps,
+    load_sampler_for, make_sampler_spec, sampler_help, sampler_long_help, AnySampler,
     SamplerOptions,
 };
-use acdf::spec::{MaterialSpec, SamplerSpec};
+use acdf::spec::{parse_direction_line, MaterialSpec, SamplerSpec, DIRECTION_FIELDS};
 use acdf_core::Vec3;
 use acdf_tabulated::Resolution;
 use clap::Args;
@@ -63,9 +63,10 @@ pub struct TableArgs {
     /// Use the paper's resolution 32x16x256x32.
     #[arg(long)]
     pub paper: bool,
-    /// Probability of drawing from the cosine lobe instead of the table.
-    #[arg(long, value_name = "A", default_value_t = 0.0)]
-    pub cosine_mix: f32,
+    /// Probability of drawing from the cosine lobe instead of the table
+    /// (default 0).
+    #[arg(long, value_name = "A")]
+    pub cosine_mix: Option<f32>,
 }
 
 impl TableArgs {
@@ -94,7 +95,7 @@ impl TableArgs {
         Ok(SamplerOptions {
             resolution,
             tolerance: self.tolerance,
-            cosine_mix: self.cosine_mix,
+            cosine_mix: self.cosine_mix.unwrap_or(0.0),
         })
     }
 }
@@ -177,21 +178,28 @@ pub fn material(args: &MaterialArgs) -> Result<Material> {
 }
 
 /// The sampler `--sampler` names, or the one `--sampler-file` holds (which
-/// must have been built for `material`).
+/// must have been built for a material of the same content as `material`,
+/// and fixes the options of its tables: giving one is an error).
 pub fn sampler(args: &SamplerArgs, material: &Material) -> Result<AnySampler> {
     let Some(path) = &args.sampler_file else {
         let spec: SamplerSpec = args.sampler.parse()?;
         return make_sampler_spec(spec, material, &args.tables.options()?);
     };
-    let loaded = load_sampler(path)?;
-    match loaded.material_name() {
-        Some(name) if name != material.brdf.name() => Err(Error::Incompatible {
-            sampler: path.display().to_string(),
-            material: material.spec.to_string(),
-            reason: format!("the file was built for material `{name}`"),
-        }),
-        _ => Ok(loaded),
+    let t = &args.tables;
+    for (given, option) in [
+        (t.tolerance.is_some(), "--tolerance"),
+        (t.resolution.is_some(), "--resolution"),
+        (t.paper, "--paper"),
+        (t.cosine_mix.is_some(), "--cosine-mix"),
+    ] {
+        if given {
+            return Err(Error::FixedBySamplerFile {
+                option,
+                path: path.clone(),
+            });
+        }
     }
+    load_sampler_for(path, material)
 }
 
 /// Buffered, locked standard output.
@@ -199,47 +207,56 @@ pub fn stdout() -> BufWriter<std::io::StdoutLock<'static>> {
     BufWriter::new(std::io::stdout().lock())
 }
 
-/// Write `value` as pretty JSON to `path`, creating its directory.
+/// Write `value` as pretty JSON to `path` (atomically), creating its
+/// directory.
 pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let text = serde_json::to_string_pretty(value)?;
-    std::fs::write(path, text + "\n").map_err(|e| Error::io(path, e))
+    let text = serde_json::to_string_pretty(value)? + "\n";
+    Ok(acdf_core::fsio::write_atomic(path, |w| {
+        w.write_all(text.as_bytes())
+    })?)
 }
 
-/// Read `x,y,z` lines from stdin (further columns, blank lines, `#`
-/// comments and a `wi_x,...` header are ignored) and call `each` with the
-/// normalised direction (zero if it has no length).
+/// The longest line of standard input read, in bytes.
+pub const MAX_LINE_BYTES: usize = 4096;
+
+/// Read `x,y,z` lines from stdin and call `each` with the unit direction of
+/// each (zero if it has no length), by [`parse_direction_line`]: blank
+/// lines and `#` comments are skipped; a header line starting `wi_x` (as
+/// `acdf sample` writes) sets how many fields the lines after it have,
+/// otherwise every line has exactly three. A line longer than
+/// [`MAX_LINE_BYTES`], or not UTF-8, is an error naming its number.
 pub fn for_each_direction(mut each: impl FnMut(Vec3) -> Result<()>) -> Result<()> {
     let stdin = std::io::stdin();
-    for (k, line) in stdin.lock().lines().enumerate() {
-        let line = line?;
-        let t = line.trim();
-        if t.is_empty() || t.starts_with('#') || t.starts_with("wi_x") {
+    let mut input = stdin.lock();
+    let mut columns = DIRECTION_FIELDS;
+    let mut buffer = Vec::new();
+    for line in 1.. {
+        let error = |reason: String| Error::Input { line, reason };
+        buffer.clear();
+        (&mut input)
+            .take(MAX_LINE_BYTES as u64 + 1)
+            .read_until(b'\n', &mut buffer)
+            .map_err(|e| error(format!("cannot read standard input: {e}")))?;
+        if buffer.is_empty() {
+            break;
+        }
+        if buffer.len() > MAX_LINE_BYTES && buffer.last() != Some(&b'\n') {
+            return Err(error(format!(
+                "longer than {MAX_LINE_BYTES} bytes; a line holds one direction x,y,z"
+            )));
+        }
+        let text =
+            std::str::from_utf8(&buffer).map_err(|_| error("is not UTF-8 text".to_string()))?;
+        if text.trim_start().starts_with("wi_x") {
+            columns = text.split(',').count().max(DIRECTION_FIELDS);
             continue;
         }
-        let fields: Vec<&str> = t.split(',').map(str::trim).collect();
-        if fields.len() < 3 {
-            return Err(Error::Input {
-                line: k + 1,
-                reason: format!("expected x,y,z, got `{t}`"),
-            });
+        if let Some(wi) = parse_direction_line(text, columns).map_err(error)? {
+            each(wi)?;
         }
-        let mut v = [0.0f32; 3];
-        for (slot, f) in v.iter_mut().zip(&fields) {
-            *slot = f.parse().map_err(|_| Error::Input {
-                line: k + 1,
-                reason: format!("`{f}` is not a number"),
-            })?;
-            if !slot.is_finite() {
-                return Err(Error::Input {
-                    line: k + 1,
-                    reason: format!("`{f}` is not finite"),
-                });
-            }
-        }
-        each(Vec3::from(v).normalize_or_zero())?;
     }
     Ok(())
 }

@@ -8,6 +8,46 @@
 //! measurements themselves live in the library, so that tests and other
 //! tools call the same code; `bench`'s are a module of the binary, so that
 //! the library's public surface does not grow by them.
+//!
+//! Output never panics: the macros below replace the standard `print!`,
+//! `println!`, `eprint!` and `eprintln!` in every module of the binary
+//! (they are defined before the modules, so they shadow the standard ones
+//! there). A closed standard output ends the command as it ends any Unix
+//! tool, by SIGPIPE; any other failure to write it (a full disk) ends it
+//! with one line on stderr and status 1; a failure to write stderr is
+//! ignored, since there is nowhere left to report it.
+
+/// `print!` that never panics; see the crate documentation.
+macro_rules! print {
+    ($($arg:tt)*) => {
+        $crate::print_or_exit(format_args!($($arg)*))
+    };
+}
+
+/// `println!` that never panics; see the crate documentation.
+macro_rules! println {
+    () => {
+        $crate::print_or_exit(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::print_or_exit(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `eprint!` that ignores a failure to write stderr.
+#[allow(unused_macros)]
+macro_rules! eprint {
+    ($($arg:tt)*) => {
+        $crate::eprint_lossy(format_args!($($arg)*))
+    };
+}
+
+/// `eprintln!` that ignores a failure to write stderr.
+macro_rules! eprintln {
+    ($($arg:tt)*) => {
+        $crate::eprint_lossy(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
 
 mod bake;
 mod bench;
@@ -20,6 +60,7 @@ mod report;
 mod sample;
 mod sweep;
 
+use std::io::Write;
 use std::process::ExitCode;
 
 use acdf::error::{Error, Result};
@@ -29,8 +70,40 @@ use clap::{Parser, Subcommand};
 #[derive(Parser, Debug)]
 #[command(name = "acdf", version, about, long_about = None)]
 struct Cli {
+    /// The most memory one table, image or file read may take, checked
+    /// before it is allocated: bytes, or a number with K, M, G or T
+    /// (powers of 1024), or `unlimited`.
+    #[arg(long, global = true, value_name = "SIZE", default_value = "4G", value_parser = acdf_core::limits::parse_size)]
+    memory_limit: u64,
     #[command(subcommand)]
     command: Command,
+}
+
+/// Write to stdout; on failure end the process (see the crate
+/// documentation). Used by the `print!` and `println!` of this binary.
+fn print_or_exit(args: std::fmt::Arguments<'_>) {
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_fmt(args).and_then(|()| out.flush()) {
+        exit_on_output_error(&e);
+    }
+}
+
+/// Write to stderr, ignoring failure. Used by the `eprint!` and
+/// `eprintln!` of this binary.
+fn eprint_lossy(args: std::fmt::Arguments<'_>) {
+    let _ = std::io::stderr().lock().write_fmt(args);
+}
+
+/// End the command after standard output failed: by SIGPIPE for a closed
+/// pipe, with one line and status 1 otherwise.
+fn exit_on_output_error(e: &std::io::Error) -> ! {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        acdf_core::fsio::die_of_broken_pipe();
+    }
+    eprint_lossy(format_args!(
+        "acdf: error: cannot write to standard output: {e}\n"
+    ));
+    std::process::exit(1)
 }
 
 #[derive(Subcommand, Debug)]
@@ -64,6 +137,7 @@ enum Command {
 
 fn main() -> ExitCode {
     // A bug should still be one line on stderr, not a backtrace.
+    // Writing stderr must not panic inside the hook either: that aborts.
     std::panic::set_hook(Box::new(|info| {
         let message = info
             .payload()
@@ -81,10 +155,14 @@ fn main() -> ExitCode {
         );
     }));
     let cli = Cli::parse();
+    acdf_core::limits::set_memory_limit(cli.memory_limit);
+    // Ctrl-C or a kill during a write removes the temporary file.
+    if let Err(e) = acdf_core::fsio::install_interrupt_cleanup() {
+        eprintln!("acdf: warning: no interrupt handler ({e}); an interrupted write may leave a temporary file");
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
-        // A closed pipe (e.g. `acdf sample ... | head`) is not a failure.
-        Err(Error::Stream(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        Err(Error::Stream(e)) => exit_on_output_error(&e),
         Err(e) => {
             eprintln!("acdf: error: {e}");
             ExitCode::FAILURE

@@ -142,10 +142,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let composite = acdf::plot::side_by_side(&panels)?;
     let side = a.out.join(format!("{}-side-by-side.png", scene.label));
-    composite.save(&side).map_err(|e| Error::Image {
-        path: side.clone(),
-        message: e.to_string(),
-    })?;
+    acdf::plot::write_png(&side, &composite)?;
     written.push(side);
     scene.print_results(&results)?;
     for p in written {
@@ -154,7 +151,11 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// Sizes and times that cannot render anything are errors before any work.
+/// The longest `--seconds` per sampler accepted: a year.
+const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
+
+/// Sizes, times and exposures that cannot render anything are errors
+/// before any work, and so is a render larger than the memory limit.
 fn check_sizes(a: &Args) -> Result<()> {
     if a.width == 0 || a.spp == 0 || a.ref_spp == 0 {
         return Err(Error::InvalidArgument {
@@ -163,13 +164,27 @@ fn check_sizes(a: &Args) -> Result<()> {
             reason: "all must be at least 1".into(),
         });
     }
-    if a.equal_time && !(a.seconds > 0.0 && a.seconds.is_finite()) {
+    if a.equal_time && !(a.seconds > 0.0 && a.seconds <= MAX_SECONDS) {
         return Err(Error::InvalidArgument {
             what: "seconds",
-            value: a.seconds.to_string(),
-            reason: "must be a positive number".into(),
+            value: format!("{:?}", a.seconds),
+            reason: format!("must be a positive number of seconds, at most {MAX_SECONDS:e}"),
         });
     }
+    if !(a.exposure.is_finite() && a.exposure >= 0.0) {
+        return Err(Error::InvalidArgument {
+            what: "exposure",
+            value: a.exposure.to_string(),
+            reason: "must be a finite number, 0 or more".into(),
+        });
+    }
+    // The film, and every image kept for the composite (one per sampler,
+    // the reference and the composite itself, which is as wide as all).
+    let images = 2 * (a.samplers.as_deref().map_or(4, |l| l.split(',').count()) + 1);
+    acdf_core::limits::check_memory(
+        &format!("a render of {0}x{0} pixels", a.width),
+        acdf::render::render_memory_estimate(a.width, a.width, images),
+    )?;
     Ok(())
 }
 
@@ -240,10 +255,7 @@ impl Scene<'_> {
             .a
             .out
             .join(format!("{}-{}.png", self.label, file_stem_safe(name)));
-        img.save(&path).map_err(|e| Error::Image {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
+        acdf::plot::write_png(&path, &img)?;
         Ok((path, img))
     }
 

@@ -86,7 +86,7 @@ pub fn run(a: Args) -> Result<()> {
         tolerance: None,
         resolution: a.resolution.clone(),
         paper: a.paper,
-        cosine_mix: 0.0,
+        cosine_mix: None,
     };
     let options = tables.options()?;
     let measure = MeasureArgs {
@@ -136,7 +136,7 @@ fn write_outputs(points: &[SweepPoint], dir: &Path, label: &str, title: &str) ->
     let csv_path = base.with_extension("csv");
     let mut csv = Vec::new();
     write_csv(points, &mut csv)?;
-    std::fs::write(&csv_path, &csv).map_err(|e| Error::io(&csv_path, e))?;
+    acdf_core::fsio::write_atomic(&csv_path, |w| w.write_all(&csv))?;
     let json_path = base.with_extension("json");
     write_json(&json_path, &points)?;
     let (svg, png) = (base.with_extension("svg"), base.with_extension("png"));
