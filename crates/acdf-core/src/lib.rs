@@ -28,6 +28,7 @@ pub mod distribution;
 pub mod error;
 pub mod fast;
 pub mod geometry;
+pub mod quadrature;
 pub mod sampler;
 pub mod search;
 pub mod warp;
@@ -39,7 +40,8 @@ pub use distribution::{
 };
 pub use error::{Error, Result};
 pub use geometry::{Frame, HalfDiff};
-pub use sampler::{is_valid_outgoing, missed_share, BxdfSample, BxdfSampler, MissedShare};
+pub use quadrature::{missed_share, HemisphereGrid, Integrand, MissedShare, Moments};
+pub use sampler::{is_valid_outgoing, BxdfSample, BxdfSampler};
 
 /// Re-exported so that downstream crates name the same vector types.
 pub use glam::{Vec2, Vec3};
