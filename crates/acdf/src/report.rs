@@ -503,7 +503,7 @@ mod tests {
             "2.50e-3",
             "2.100e0 (±3%)",
             "12.2",
-            "| 30 |",
+            " 30 |",
         ] {
             assert!(t.contains(needle), "{needle} in {t}");
         }
