@@ -32,6 +32,7 @@ pub mod fast;
 pub mod fsio;
 pub mod geometry;
 pub mod limits;
+pub mod quadrature;
 pub mod sampler;
 pub mod search;
 pub mod warp;
@@ -43,7 +44,8 @@ pub use distribution::{
 };
 pub use error::{Error, Result};
 pub use geometry::{Frame, HalfDiff};
-pub use sampler::{is_valid_outgoing, missed_share, BxdfSample, BxdfSampler, MissedShare};
+pub use quadrature::{missed_share, HemisphereGrid, Integrand, MissedShare, Moments};
+pub use sampler::{is_valid_outgoing, BxdfSample, BxdfSampler};
 
 /// Re-exported so that downstream crates name the same vector types.
 pub use glam::{Vec2, Vec3};

@@ -11,7 +11,6 @@
 //!   `None`; its probability is the mass the pdf does not cover, so ∫ pdf ≤ 1.
 //! - `pdf` is finite and non-negative for every input, and 0 for `wi.z <= 0`.
 
-use crate::Brdf;
 use glam::{Vec2, Vec3};
 
 /// A sampled incident direction and its solid-angle density.
@@ -107,74 +106,6 @@ impl<T: BxdfSampler + ?Sized> BxdfSampler for Box<T> {
     }
     fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
         (**self).pdf_each(wo, wi, out)
-    }
-}
-
-/// How much of the light reflected towards one `wo` a sampler can never
-/// draw: the result of [`missed_share`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MissedShare {
-    /// ∫_{p = 0} Y(f) cos θ_i dω / ∫ Y(f) cos θ_i dω; 0 when the BRDF
-    /// reflects nothing at wo.
-    pub share: f64,
-    /// The incident direction of the largest missed term, if any.
-    pub worst: Option<Vec3>,
-}
-
-/// The share of the reflected luminance that `sampler` can never draw at
-/// `wo`, ∫_{p = 0} Y(f) cos θ_i dω / ∫ Y(f) cos θ_i dω over the upper
-/// hemisphere (f = `brdf.eval`, p = `sampler.pdf`, Y the luminance), by the
-/// midpoint rule on `n_cos` × `n_phi` cells of equal solid angle (equal
-/// steps in cos θ_i and φ_i, each evaluated at its centre).
-///
-/// An unbiased estimator of the light reflected towards wo needs p > 0
-/// wherever f cos θ_i > 0: the share is the fraction by which a sampler
-/// used alone is biased dark, whatever the sample count, and neither a
-/// chi-square test nor the integral of the pdf sees it (sample and pdf
-/// still agree). Deterministic: the cells are summed in a fixed order.
-pub fn missed_share(
-    brdf: &dyn Brdf,
-    sampler: &dyn BxdfSampler,
-    wo: Vec3,
-    n_cos: usize,
-    n_phi: usize,
-) -> MissedShare {
-    let (n_cos, n_phi) = (n_cos.max(1), n_phi.max(1));
-    let (mut all, mut missed) = (0.0f64, 0.0f64);
-    let mut worst: Option<(f64, Vec3)> = None;
-    let mut wi = vec![Vec3::ZERO; n_phi];
-    let mut pdf = vec![0.0f32; n_phi];
-    for k in 0..n_cos {
-        let cos_t = (k as f64 + 0.5) / n_cos as f64;
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        for (l, w) in wi.iter_mut().enumerate() {
-            let phi = std::f64::consts::TAU * (l as f64 + 0.5) / n_phi as f64;
-            *w = Vec3::new(
-                (sin_t * phi.cos()) as f32,
-                (sin_t * phi.sin()) as f32,
-                cos_t as f32,
-            );
-        }
-        sampler.pdf_batch(wo, &wi, &mut pdf);
-        for (&wi, &p) in wi.iter().zip(&pdf) {
-            let g = brdf.luminance(wo, wi) as f64 * wi.z as f64;
-            if !(g.is_finite() && g > 0.0) {
-                continue;
-            }
-            all += g;
-            // A NaN density draws nothing either.
-            let drawable = p > 0.0;
-            if !drawable {
-                missed += g;
-                if worst.is_none_or(|(largest, _)| g > largest) {
-                    worst = Some((g, wi));
-                }
-            }
-        }
-    }
-    MissedShare {
-        share: if all > 0.0 { missed / all } else { 0.0 },
-        worst: worst.map(|(_, wi)| wi),
     }
 }
 

@@ -1,11 +1,20 @@
 //! Loading a material from its command-line name ([`MaterialSpec`]).
+//!
+//! A Neural-BRDF material (`nbrdf:NAME`) is evaluated as a renderer
+//! evaluates measured data: its network is baked once into a MERL-layout
+//! table (90 θ_h × 90 θ_d × 180 φ_d, [`NeuralBrdf::bake`]) and every
+//! evaluation is a trilinear lookup in that table. Bakes are kept per
+//! process ([`baked_network`]), so that loading the same material again
+//! reuses the table. The network itself is what [`load_network`] returns,
+//! for baking and for checking against the reference outputs shipped with
+//! the weights.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use acdf_core::Brdf;
 use acdf_materials::merl::MerlTable;
-use acdf_materials::nbrdf::{NbrdfLibrary, NAMES_FILE, WEIGHTS_FILE};
+use acdf_materials::nbrdf::{NbrdfLibrary, NeuralBrdf, NAMES_FILE, WEIGHTS_FILE};
 use acdf_materials::rgl::RglBrdf;
 
 use crate::error::{Error, Result};
@@ -111,19 +120,7 @@ pub fn load_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Resul
             let rgl = Arc::new(RglBrdf::open(path).map_err(|e| material_error(spec, e))?);
             (rgl.clone(), Some(rgl))
         }
-        MaterialSpec::Nbrdf(name) => {
-            let path = nbrdf_weights_path(nbrdf_weights).ok_or_else(|| {
-                material_error(
-                    spec,
-                    format!(
-                        "no Neural-BRDF weights: pass --nbrdf-weights or put {DEFAULT_NBRDF_WEIGHTS} in place"
-                    ),
-                )
-            })?;
-            let library = load_nbrdf_library(&path).map_err(|e| material_error(spec, e))?;
-            let network = library.material(name).map_err(|e| network_error(spec, e))?;
-            (Arc::new(network), None)
-        }
+        MaterialSpec::Nbrdf(_) => (baked_network(spec, nbrdf_weights)?, None),
     };
     Ok(Material {
         spec: spec.clone(),
@@ -137,12 +134,8 @@ pub fn load_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Resul
 /// reproduces its table exactly), every other BRDF is tabulated with the
 /// MERL rule that marks grid points below the horizon unmeasured.
 pub fn bake_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Result<MerlTable> {
-    if let MaterialSpec::Nbrdf(name) = spec {
-        let path = nbrdf_weights_path(nbrdf_weights)
-            .ok_or_else(|| material_error(spec, "no Neural-BRDF weights: pass --nbrdf-weights"))?;
-        let library = load_nbrdf_library(&path).map_err(|e| material_error(spec, e))?;
-        let network = library.material(name).map_err(|e| network_error(spec, e))?;
-        return Ok(network.bake());
+    if let MaterialSpec::Nbrdf(_) = spec {
+        return Ok(load_network(spec, nbrdf_weights)?.bake());
     }
     // A MERL table is its own baking: the file is read back as it is, so
     // writing it reproduces every value and unmeasured entry.
@@ -151,6 +144,77 @@ pub fn bake_material(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Resul
     }
     let material = load_material(spec, nbrdf_weights)?;
     Ok(acdf_materials::nbrdf::bake(material.brdf.as_ref()))
+}
+
+/// The network of `nbrdf:NAME` itself (evaluated in `f64` at every call);
+/// [`Error::UnknownMaterial`] listing every name of the weight file for a
+/// name it does not hold, and [`Error::Material`] for any other spec.
+pub fn load_network(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Result<NeuralBrdf> {
+    let MaterialSpec::Nbrdf(name) = spec else {
+        return Err(material_error(
+            spec,
+            "not a Neural-BRDF material (nbrdf:NAME)",
+        ));
+    };
+    let path = nbrdf_weights_path(nbrdf_weights).ok_or_else(|| {
+        material_error(
+            spec,
+            format!(
+                "no Neural-BRDF weights: pass --nbrdf-weights or put {DEFAULT_NBRDF_WEIGHTS} in place"
+            ),
+        )
+    })?;
+    let library = load_nbrdf_library(&path).map_err(|e| material_error(spec, e))?;
+    library.material(name).map_err(|e| network_error(spec, e))
+}
+
+/// How many baked tables [`baked_network`] keeps (about 23 MiB each with
+/// the luminance plane a sampler's tabulation adds): enough for the
+/// materials of one command, few enough that a pass over all 100 MERL
+/// materials holds only the recent ones.
+pub const BAKED_CACHE: usize = 4;
+
+/// The process's recent bakes: (weight file, material name, table), most
+/// recent last.
+type BakeCache = Vec<(PathBuf, String, Arc<MerlTable>)>;
+
+static BAKED: Mutex<BakeCache> = Mutex::new(Vec::new());
+
+/// `nbrdf:NAME` baked into a MERL-layout table ([`NeuralBrdf::bake`]),
+/// evaluated by trilinear lookup. The table is baked once and reused while
+/// it is among the [`BAKED_CACHE`] most recently used in this process
+/// (keyed by the weight file and the name).
+pub fn baked_network(spec: &MaterialSpec, nbrdf_weights: Option<&Path>) -> Result<Arc<MerlTable>> {
+    let MaterialSpec::Nbrdf(name) = spec else {
+        return Err(material_error(
+            spec,
+            "not a Neural-BRDF material (nbrdf:NAME)",
+        ));
+    };
+    let key = nbrdf_weights_path(nbrdf_weights).unwrap_or_default();
+    let found = |cache: &mut BakeCache| {
+        let k = cache.iter().position(|(p, n, _)| *p == key && n == name)?;
+        let entry = cache.remove(k);
+        let table = entry.2.clone();
+        cache.push(entry);
+        Some(table)
+    };
+    // A poisoned lock only means another thread panicked while holding
+    // it; the cache itself is always a valid list.
+    if let Some(table) = found(&mut BAKED.lock().unwrap_or_else(|e| e.into_inner())) {
+        return Ok(table);
+    }
+    // Bake outside the lock: two threads may bake the same table once each.
+    let table = Arc::new(load_network(spec, nbrdf_weights)?.bake());
+    let mut cache = BAKED.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(table) = found(&mut cache) {
+        return Ok(table);
+    }
+    if cache.len() >= BAKED_CACHE {
+        cache.remove(0);
+    }
+    cache.push((key, name.clone(), table.clone()));
+    Ok(table)
 }
 
 /// Write a baked table (atomically), mapping errors to the facade's: a

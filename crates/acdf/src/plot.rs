@@ -1,6 +1,7 @@
-//! Figures: the efficiency- and variance-against-storage plots of a sweep
-//! (SVG and PNG) and
-//! captions on side-by-side renders. Text uses DejaVu Sans, which the
+//! Figures: log-log charts (the efficiency- and variance-against-storage
+//! plots of a sweep, the compression-against-efficiency scatter of a
+//! survey), drawn to SVG text and PNG bytes, and captions on side-by-side
+//! renders. Text uses DejaVu Sans, which the
 //! `dejavu` crate embeds, so nothing depends on the fonts of the machine.
 
 use std::path::Path;
@@ -30,25 +31,42 @@ fn ensure_font() -> Result<()> {
     }
 }
 
-/// One line of the plot: (storage in bytes, efficiency) points.
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// Points joined in order of x, each marked.
+    Line,
+    /// Points alone.
+    Points,
+}
+
+/// One series of a panel: (x, y) points, both positive (others are left
+/// out).
 #[derive(Debug, Clone)]
 pub struct Series {
     pub label: String,
     pub points: Vec<(f64, f64)>,
+    pub style: Style,
 }
 
-/// One panel of a sweep figure, a quantity against storage: the simplifier
-/// curves, the uniform sampler as one marked point and the cosine sampler
-/// (no storage) as a horizontal line.
+/// A single labelled point, drawn as a triangle (a reference sampler, a
+/// point a search chose).
+#[derive(Debug, Clone)]
+pub struct Marker {
+    pub label: String,
+    pub point: (f64, f64),
+}
+
+/// One log-log panel: series, markers, and lines of text printed in its
+/// upper left corner (for figures that would not fit the axes, e.g. a
+/// sampler orders of magnitude below the others).
 #[derive(Debug, Clone)]
 pub struct Panel {
-    /// The quantity on the (logarithmic) y axis.
+    pub x_label: String,
     pub y_label: String,
     pub series: Vec<Series>,
-    /// (storage bytes, value) of the uniform tabulation.
-    pub uniform: (f64, f64),
-    /// The value of cosine sampling.
-    pub cosine: f64,
+    pub markers: Vec<Marker>,
+    pub notes: Vec<String>,
     /// Whether to draw the legend in this panel.
     pub legend: bool,
 }
@@ -85,6 +103,36 @@ where
     root.present().map_err(|e| e.to_string())
 }
 
+fn positive(v: f64) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+/// The range of positive values, widened by a factor of 1.5 each way (a
+/// decade around a single value; 1 to 10 for none).
+fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+    let (lo, hi) = values
+        .filter(|&v| positive(v))
+        .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        return 1.0..10.0;
+    }
+    if hi / lo < 1.5 {
+        return lo / 3.0..hi * 3.0;
+    }
+    lo / 1.5..hi * 1.5
+}
+
+/// Tick labels of a log axis: plain numbers from 0.01 to 10^4, powers of
+/// ten beyond.
+fn tick(v: f64) -> String {
+    if (1e-2..1e4).contains(&v.abs()) {
+        let s = format!("{v:.2}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{v:.0e}")
+    }
+}
+
 fn draw_panel<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     plot: &Panel,
@@ -92,92 +140,84 @@ fn draw_panel<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    let positive = |v: f64| v.is_finite() && v > 0.0;
-    let xs = plot
-        .series
-        .iter()
-        .flat_map(|s| s.points.iter().map(|p| p.0))
-        .chain(std::iter::once(plot.uniform.0))
-        .filter(|&v| positive(v));
-    let ys = plot
-        .series
-        .iter()
-        .flat_map(|s| s.points.iter().map(|p| p.1))
-        .chain([plot.uniform.1, plot.cosine])
-        .filter(|&v| positive(v));
-    let (xmin, xmax) = xs.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
-    let (ymin, ymax) = ys.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
-    let (xmin, xmax) = if xmin.is_finite() {
-        (xmin / 2.0, xmax * 2.0)
-    } else {
-        (1.0, 10.0)
+    let all = || {
+        plot.series
+            .iter()
+            .flat_map(|s| s.points.iter().copied())
+            .chain(plot.markers.iter().map(|m| m.point))
     };
-    let (ymin, ymax) = if ymin.is_finite() {
-        (ymin / 2.0, ymax * 2.0)
-    } else {
-        (1.0, 10.0)
-    };
+    let x_range = log_range(all().map(|p| p.0));
+    let y_range = log_range(all().map(|p| p.1));
 
     let mut chart = ChartBuilder::on(&root)
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(70)
-        .build_cartesian_2d((xmin..xmax).log_scale(), (ymin..ymax).log_scale())
+        .build_cartesian_2d(x_range.log_scale(), y_range.clone().log_scale())
         .map_err(|e| e.to_string())?;
     chart
         .configure_mesh()
-        .x_desc("storage (bytes)")
+        .x_desc(plot.x_label.as_str())
         .y_desc(plot.y_label.as_str())
         .x_labels(6)
         .y_labels(8)
         .label_style((FAMILY, 13))
-        .x_label_formatter(&|v| format!("{v:.0e}"))
-        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
         .draw()
         .map_err(|e| e.to_string())?;
 
-    let palette = [&BLUE, &RED, &GREEN, &MAGENTA, &CYAN];
     for (i, s) in plot.series.iter().enumerate() {
-        let color = palette[i % palette.len()];
+        let color = Palette99::pick(i).to_rgba();
         let mut pts: Vec<(f64, f64)> = s
             .points
             .iter()
             .copied()
             .filter(|p| positive(p.0) && positive(p.1))
             .collect();
-        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if s.style == Style::Line {
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                .map_err(|e| e.to_string())?;
+        }
+        let radius = if s.style == Style::Line { 3 } else { 2 };
         chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .draw_series(
+                pts.into_iter()
+                    .map(move |p| Circle::new(p, radius, color.filled())),
+            )
             .map_err(|e| e.to_string())?
             .label(s.label.clone())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-        chart
-            .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| e.to_string())?;
+            .legend(move |(x, y)| Circle::new((x + 9, y), 4, color.filled()));
     }
-    if positive(plot.uniform.0) && positive(plot.uniform.1) {
+    for (i, m) in plot.markers.iter().enumerate() {
+        if !(positive(m.point.0) && positive(m.point.1)) {
+            continue;
+        }
+        let shade = RGBColor(0, 0, 0).mix(1.0 - 0.35 * (i % 3) as f64);
         chart
             .draw_series(std::iter::once(TriangleMarker::new(
-                plot.uniform,
+                m.point,
                 8,
-                BLACK.filled(),
+                shade.filled(),
             )))
             .map_err(|e| e.to_string())?
-            .label("uniform")
-            .legend(|(x, y)| TriangleMarker::new((x + 9, y), 6, BLACK.filled()));
+            .label(m.label.clone())
+            .legend(move |(x, y)| TriangleMarker::new((x + 9, y), 6, shade.filled()));
     }
-    if positive(plot.cosine) {
-        let c = plot.cosine;
+    for (k, note) in plot.notes.iter().enumerate() {
         chart
-            .draw_series(LineSeries::new(
-                vec![(xmin, c), (xmax, c)],
-                BLACK.mix(0.6).stroke_width(1),
+            .plotting_area()
+            .draw(&Text::new(
+                note.clone(),
+                (
+                    chart.plotting_area().get_x_range().start,
+                    y_range.end / 1.25f64.powi(k as i32 + 1),
+                ),
+                (FAMILY, 13).into_font().color(&BLACK),
             ))
-            .map_err(|e| e.to_string())?
-            .label("cosine (no storage)")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], BLACK.mix(0.6)));
+            .map_err(|e| e.to_string())?;
     }
     if plot.legend {
         chart
@@ -192,28 +232,35 @@ where
     Ok(())
 }
 
-/// Draw the figure as an SVG file and as a PNG file, 700 × 560 pixels per
-/// panel. Both are drawn in memory and written atomically
-/// ([`acdf_core::fsio::write_atomic`]).
-pub fn plot_figure(figure: &Figure, svg: &Path, png: &Path) -> Result<()> {
+/// The pixel size of a figure: 700 × 560 per panel.
+fn figure_size(figure: &Figure) -> (u32, u32) {
+    (700 * figure.panels.len().max(1) as u32, 560u32)
+}
+
+/// Draw the figure as SVG text and as PNG bytes, 700 × 560 pixels per
+/// panel; `name` names the figure in errors. The caller writes them.
+pub fn figure_bytes(figure: &Figure, name: &Path) -> Result<(String, Vec<u8>)> {
     ensure_font()?;
-    let size = (700 * figure.panels.len().max(1) as u32, 560u32);
-    let mut text = String::new();
+    let size = figure_size(figure);
+    let mut svg = String::new();
     draw_figure(
-        SVGBackend::with_string(&mut text, size).into_drawing_area(),
+        SVGBackend::with_string(&mut svg, size).into_drawing_area(),
         figure,
     )
-    .map_err(|e| plot_error(svg, e))?;
-    acdf_core::fsio::write_atomic(svg, |w| w.write_all(text.as_bytes()))?;
+    .map_err(|e| plot_error(name, e))?;
     let mut pixels = vec![0u8; size.0 as usize * size.1 as usize * 3];
     draw_figure(
         BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area(),
         figure,
     )
-    .map_err(|e| plot_error(png, e))?;
+    .map_err(|e| plot_error(name, e))?;
     let image = image::RgbImage::from_raw(size.0, size.1, pixels)
-        .ok_or_else(|| plot_error(png, "the drawn buffer does not match its size"))?;
-    write_png(png, &image)
+        .ok_or_else(|| plot_error(name, "the bitmap has the wrong size"))?;
+    let mut png = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(|e| plot_error(name, e))?;
+    Ok((svg, png))
 }
 
 /// Write an 8-bit RGB image as a PNG file, atomically
@@ -274,16 +321,27 @@ mod tests {
     use super::*;
 
     #[test]
-    fn plot_writes_svg_and_png() {
-        let dir = tempfile::tempdir().unwrap();
+    fn figures_draw_to_svg_and_png() {
         let panel = Panel {
+            x_label: "storage (bytes)".into(),
             y_label: "efficiency".into(),
-            series: vec![Series {
-                label: "dp".into(),
-                points: vec![(1e3, 5.0), (1e4, 8.0), (1e5, 9.0)],
+            series: vec![
+                Series {
+                    label: "dp".into(),
+                    points: vec![(1e3, 5.0), (1e4, 8.0), (1e5, 9.0), (-1.0, f64::NAN)],
+                    style: Style::Line,
+                },
+                Series {
+                    label: "scatter".into(),
+                    points: vec![(2e3, 0.5)],
+                    style: Style::Points,
+                },
+            ],
+            markers: vec![Marker {
+                label: "uniform".into(),
+                point: (1e6, 10.0),
             }],
-            uniform: (1e6, 10.0),
-            cosine: 2.0,
+            notes: vec!["cosine (no tables): 3.1e-4".into()],
             legend: true,
         };
         let figure = Figure {
@@ -296,12 +354,20 @@ mod tests {
                 },
             ],
         };
-        let (svg, png) = (dir.path().join("a.svg"), dir.path().join("a.png"));
-        plot_figure(&figure, &svg, &png).unwrap();
-        let text = std::fs::read_to_string(&svg).unwrap();
-        assert!(text.contains("storage (bytes)") && text.contains("uniform"));
-        let img = image::open(&png).unwrap();
+        let (svg, png) = figure_bytes(&figure, Path::new("test")).unwrap();
+        for needle in [
+            "storage (bytes)",
+            "uniform",
+            "cosine (no tables): 3.1e-4",
+            "scatter",
+        ] {
+            assert!(svg.contains(needle), "{needle}");
+        }
+        let img = image::load_from_memory(&png).unwrap();
         assert_eq!((img.width(), img.height()), (1400, 560));
+        assert_eq!(tick(0.25), "0.25");
+        assert_eq!(tick(100.0), "100");
+        assert_eq!(tick(1e-5), "1e-5");
     }
 
     #[test]

@@ -498,6 +498,18 @@ pub fn render_samplers(material: &Material) -> Vec<SamplerSpec> {
         .collect()
 }
 
+/// The samplers of every family without simplifiers that can be used with
+/// `material`, in the table's order (`cosine`, `uniform`, and `rgl` for
+/// RGL materials): with every simplifier of the adaptive family, the
+/// samplers the registry knows.
+pub fn plain_samplers(material: &Material) -> Vec<SamplerSpec> {
+    SAMPLERS
+        .iter()
+        .filter(|f| !f.simplifiers && usable(f, material))
+        .map(SamplerSpec::of_family)
+        .collect()
+}
+
 /// `acdf report`'s default set for help texts, e.g. `uniform, adaptive:dp,
 /// ..., rgl (for .bsdf materials)`.
 pub fn report_default_help() -> String {

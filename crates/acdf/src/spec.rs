@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use std::str::FromStr;
 
 use acdf_adaptive::simplify::{simplifier_entry, SimplifierEntry, SIMPLIFIERS, SIMPLIFIER_NAMES};
+use acdf_tabulated::Resolution;
 
 use crate::error::Error;
 use crate::registry::{family, sampler_names, SamplerFamily, ADAPTIVE};
@@ -24,7 +25,9 @@ pub const BUILTIN_MATERIALS: [&str; 5] = [
     "near-mirror",
 ];
 
-/// The built-in stand-ins `acdf report` uses when no material is given.
+/// The materials `acdf report` uses when none is given: these MERL
+/// materials as `nbrdf:NAME` when the Neural-BRDF weights are found, else
+/// the built-in stand-ins of the same names (`builtin:NAME`).
 pub const DEFAULT_REPORT_MATERIALS: [&str; 3] = ["nickel", "blue-metallic-paint", "gray-plastic"];
 
 /// Where a BRDF comes from.
@@ -245,6 +248,67 @@ impl fmt::Display for SamplerSpec {
     }
 }
 
+/// A sampler at a tabulation resolution, `NAME` or `NAME@RES` (e.g.
+/// `uniform@32x16x256x32`): the reference of relative columns
+/// (`--reference`). Without `@RES` the sampler takes the command's
+/// resolution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SamplerAt {
+    pub sampler: SamplerSpec,
+    pub resolution: Option<Resolution>,
+}
+
+impl SamplerAt {
+    /// `uniform@32x16x256x32`: the uniform table at the seed presentation's
+    /// resolution, the reference of `--target-efficiency` and of
+    /// `acdf survey`.
+    pub const PAPER_UNIFORM: SamplerAt = SamplerAt {
+        sampler: SamplerSpec::UNIFORM,
+        resolution: Some(Resolution::PAPER),
+    };
+
+    /// `sampler` at the command's resolution.
+    pub fn plain(sampler: SamplerSpec) -> SamplerAt {
+        SamplerAt {
+            sampler,
+            resolution: None,
+        }
+    }
+}
+
+impl FromStr for SamplerAt {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self, Error> {
+        let (name, resolution) = match s.split_once('@') {
+            Some((name, res)) => {
+                let res: Resolution =
+                    res.parse()
+                        .map_err(|e: acdf_core::Error| Error::InvalidArgument {
+                            what: "resolution",
+                            value: res.to_string(),
+                            reason: e.to_string(),
+                        })?;
+                (name, Some(res))
+            }
+            None => (s, None),
+        };
+        Ok(SamplerAt {
+            sampler: name.parse()?,
+            resolution,
+        })
+    }
+}
+
+impl fmt::Display for SamplerAt {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.resolution {
+            Some(r) => write!(f, "{}@{r}", self.sampler),
+            None => write!(f, "{}", self.sampler),
+        }
+    }
+}
+
 /// Parse `THETA_DEG,PHI_DEG` into a unit direction of the local frame.
 /// The angles are read and turned into a direction in `f64`, then narrowed,
 /// so that any θ below 90° (89.99999999 included) gives a direction above
@@ -433,6 +497,23 @@ mod tests {
         assert!(e.len() < 200, "the error echoes the whole token");
         let wo = parse_direction_degrees("89.99999999,0").unwrap();
         assert!(wo.z > 0.0 && acdf_core::is_valid_outgoing(wo), "{wo}");
+    }
+
+    #[test]
+    fn samplers_at_a_resolution_parse() {
+        let paper: SamplerAt = "uniform@32x16x256x32".parse().unwrap();
+        assert_eq!(paper, SamplerAt::PAPER_UNIFORM);
+        assert_eq!(paper.to_string(), "uniform@32x16x256x32");
+        let plain: SamplerAt = "adaptive:chi2".parse().unwrap();
+        assert_eq!(plain.resolution, None);
+        assert!(matches!(
+            "uniform@32x0x256x32".parse::<SamplerAt>(),
+            Err(Error::InvalidArgument { .. })
+        ));
+        assert!(matches!(
+            "nope@32x1x256x32".parse::<SamplerAt>(),
+            Err(Error::UnknownSampler { .. })
+        ));
     }
 
     #[test]

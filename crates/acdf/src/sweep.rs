@@ -1,8 +1,9 @@
-//! The speed/accuracy trade of the adaptive sampler: for each simplifier,
-//! over a range of tolerances, the storage, the kept vertices, the time per
-//! draw and per pdf, and the variance and efficiency of
-//! [`efficiency`](crate::efficiency), with the uniform and cosine samplers
-//! as the two reference points.
+//! The storage/accuracy trade of the adaptive sampler: every simplifier over
+//! a range of tolerances, with every other sampler the registry knows
+//! (uniform, cosine, and `rgl` for RGL materials) as reference points, each
+//! with its storage, time and the noise-free relative variance, firefly
+//! measure and efficiency of [`efficiency`](crate::efficiency), relative to
+//! a reference sampler.
 
 use std::io::Write;
 use std::path::Path;
@@ -10,13 +11,14 @@ use std::path::Path;
 use acdf_core::BxdfSampler;
 use serde::Serialize;
 
-use crate::efficiency::{measure_efficiencies, Efficiency, EfficiencyConfig};
+use crate::efficiency::{measure_with, Efficiency, EfficiencyConfig, Integrands};
 use crate::env::Environment;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::material::Material;
-use crate::plot::{Figure, Panel, Series};
-use crate::registry::{make_sampler_spec, AnySampler, SamplerOps, SamplerOptions};
-use crate::spec::{SamplerSpec, SimplifierName};
+use crate::plot::{figure_bytes, Figure, Marker, Panel, Series, Style};
+use crate::registry::{make_sampler_spec, plain_samplers, AnySampler, SamplerOps, SamplerOptions};
+use crate::spec::{SamplerAt, SamplerSpec, SimplifierName};
+use crate::target::{relative, search_tolerance, Reference, TargetOutcome};
 
 /// The default tolerances of a sweep: the simplifier's default tolerance
 /// times 1/16, 1/8, …, 8.
@@ -40,46 +42,36 @@ pub fn default_tolerance(simplifier: SimplifierName) -> f64 {
 #[derive(Debug, Clone, Serialize)]
 pub struct SweepPoint {
     pub material: String,
-    /// `adaptive:dp`, …, or `uniform` / `cosine` for the references.
+    /// `adaptive:dp`, …, or `uniform`, `cosine`, `rgl`.
     pub sampler: String,
-    /// The simplifier's tolerance (`null` for the references).
+    /// The simplifier's tolerance (`null` for the others).
     pub tolerance: Option<f64>,
+    /// The tabulation θ_o×φ_o×θ_h×φ_h (`-` without tables).
+    pub resolution: String,
+    /// Whether this point is the reference of `relative_efficiency`.
+    pub is_reference: bool,
+    /// Whether a `--target-efficiency` search chose this point.
+    pub target_chosen: bool,
     pub storage_bytes: usize,
     /// Mean kept vertices of the θ_h marginals and of the φ_h conditionals.
     pub mean_marginal_vertices: Option<f64>,
     pub mean_conditional_vertices: Option<f64>,
     pub ns_per_draw: f64,
     pub ns_per_pdf: f64,
-    pub ns_per_sample: f64,
-    pub variance: f64,
-    pub variance_rel_se: f64,
+    /// t_s = t_sample + v t_pdf, the sampler's own work.
+    pub ns_per_sampler: f64,
+    /// One BRDF evaluation (not part of t_s).
+    pub ns_per_eval: f64,
+    /// By quadrature.
+    pub relative_variance: f64,
+    pub firefly: f64,
+    /// The Monte Carlo cross-check and its relative standard error (from
+    /// the estimator's fourth moment by quadrature).
+    pub mc_relative_variance: Option<f64>,
+    pub mc_relative_variance_rel_se: Option<f64>,
+    /// 1 / (r t_s).
     pub efficiency: Option<f64>,
     pub relative_efficiency: Option<f64>,
-}
-
-fn point(
-    material: &str,
-    sampler: &str,
-    tolerance: Option<f64>,
-    storage_bytes: usize,
-    vertices: Option<(f64, f64)>,
-    e: &Efficiency,
-) -> SweepPoint {
-    SweepPoint {
-        material: material.to_string(),
-        sampler: sampler.to_string(),
-        tolerance,
-        storage_bytes,
-        mean_marginal_vertices: vertices.map(|v| v.0),
-        mean_conditional_vertices: vertices.map(|v| v.1),
-        ns_per_draw: e.timing.seconds_per_draw * 1e9,
-        ns_per_pdf: e.timing.seconds_per_pdf * 1e9,
-        ns_per_sample: e.seconds_per_sample * 1e9,
-        variance: e.variance,
-        variance_rel_se: e.variance_rel_se,
-        efficiency: e.efficiency.is_finite().then_some(e.efficiency),
-        relative_efficiency: None,
-    }
 }
 
 /// A sampler of the sweep with all its tables built, before it is timed.
@@ -87,6 +79,8 @@ struct Built {
     spec: SamplerSpec,
     tolerance: Option<f64>,
     sampler: AnySampler,
+    is_reference: bool,
+    target_chosen: bool,
 }
 
 /// `spec` at `options` on `material`, all tables built.
@@ -97,33 +91,68 @@ fn build(spec: SamplerSpec, material: &Material, options: &SamplerOptions) -> Re
         spec,
         tolerance: spec.simplifier().and(options.tolerance),
         sampler,
+        is_reference: false,
+        target_chosen: false,
     })
 }
 
-/// Run the sweep: the uniform and cosine references, then every simplifier
-/// at every tolerance of `tolerances(simplifier)`. `progress` is called once
-/// per built sampler with its label, then with "timing". Every sampler is
-/// built before any is timed, and their timed passes are taken in turns
-/// ([`measure_efficiencies`]), so that the points of the curves are timed
+/// What [`run_sweep`] measures.
+pub struct SweepPlan<'a> {
+    /// The simplifiers whose tolerances are swept.
+    pub simplifiers: &'a [SimplifierName],
+    /// The tolerances of each simplifier.
+    pub tolerances: &'a dyn Fn(SimplifierName) -> Result<Vec<f64>>,
+    /// The reference of the relative efficiency (measured as a point of
+    /// its own when it is not the uniform sampler at `options`).
+    pub reference: SamplerAt,
+    /// Resolution and cosine mixing of every sampler.
+    pub options: SamplerOptions,
+    /// With a target efficiency, each simplifier's tolerance is also
+    /// searched for ([`search_tolerance`]) and the chosen sampler added.
+    pub target: Option<f64>,
+}
+
+/// Run the sweep: the reference, every plain sampler of the registry
+/// usable with `material` ([`plain_samplers`]), then every simplifier at
+/// every tolerance, and with a target each simplifier's chosen tolerance.
+/// `progress` is called once per built sampler with its label, then with
+/// "quadrature" and "timing" (and with each tolerance a target search
+/// tries). Every sampler is built before any is timed, and their timed
+/// repeats are taken in turns, so that the points of the curves are timed
 /// under the same conditions (all the tables are held at once: at the
-/// default 32x1x256x32 about 0.2 to 1 MiB a sampler). Points carry
-/// efficiency relative to the uniform sampler.
+/// default 32x1x256x32 about 0.2 to 1 MiB a sampler).
 pub fn run_sweep(
     material: &Material,
     env: &dyn Environment,
-    base: &SamplerOptions,
-    simplifiers: &[SimplifierName],
-    tolerances: impl Fn(SimplifierName) -> Result<Vec<f64>>,
+    plan: &SweepPlan,
     config: &EfficiencyConfig,
     mut progress: impl FnMut(&str),
-) -> Result<Vec<SweepPoint>> {
+) -> Result<(Vec<SweepPoint>, Vec<TargetOutcome>)> {
+    let base = &plan.options;
+    let reference_options = SamplerOptions {
+        resolution: plan.reference.resolution.unwrap_or(base.resolution),
+        ..*base
+    };
+    // Uniform first: the reference of the curves when none is named.
+    let mut plain = plain_samplers(material);
+    plain.sort_by_key(|&s| s != SamplerSpec::UNIFORM);
+    let among_plain = reference_options == *base && plain.contains(&plan.reference.sampler);
     let mut built = Vec::new();
-    for spec in [SamplerSpec::UNIFORM, SamplerSpec::COSINE] {
-        progress(&spec.to_string());
-        built.push(build(spec, material, base)?);
+    if !among_plain {
+        progress(&format!("reference {}", plan.reference));
+        let mut b = build(plan.reference.sampler, material, &reference_options)?;
+        b.is_reference = true;
+        built.push(b);
     }
-    for &simplifier in simplifiers {
-        for tolerance in tolerances(simplifier)? {
+    for spec in plain {
+        progress(&spec.to_string());
+        let mut b = build(spec, material, base)?;
+        b.is_reference = among_plain && spec == plan.reference.sampler;
+        built.push(b);
+    }
+    let reference_at = built.iter().position(|b| b.is_reference).unwrap_or(0);
+    for &simplifier in plan.simplifiers {
+        for tolerance in (plan.tolerances)(simplifier)? {
             progress(&format!(
                 "adaptive:{} tolerance {tolerance:.3e}",
                 simplifier.short()
@@ -139,41 +168,86 @@ pub fn run_sweep(
             )?);
         }
     }
+    progress("quadrature");
+    let integrands = Integrands::new(material.brdf.as_ref(), env, config);
+    let mut outcomes = Vec::new();
+    if let Some(target) = plan.target {
+        let reference = &built[reference_at].sampler;
+        let relative_variance = integrands.noise_free(reference).relative_variance;
+        let mut chosen = Vec::new();
+        for &simplifier in plan.simplifiers {
+            let (outcome, sampler) = search_tolerance(
+                material,
+                simplifier,
+                base,
+                &Reference {
+                    sampler: reference,
+                    relative_variance,
+                },
+                &integrands,
+                config,
+                target,
+                |t| progress(&format!("target: adaptive:{simplifier} tolerance {t:.3e}")),
+            )?;
+            chosen.push(Built {
+                spec: SamplerSpec::adaptive(simplifier),
+                tolerance: Some(outcome.chosen.tolerance),
+                sampler,
+                is_reference: false,
+                target_chosen: true,
+            });
+            outcomes.push(outcome);
+        }
+        built.extend(chosen);
+    }
     progress("timing");
     let samplers: Vec<&dyn BxdfSampler> = built
         .iter()
         .map(|b| &b.sampler as &dyn BxdfSampler)
         .collect();
-    let efficiencies = measure_efficiencies(material.brdf.as_ref(), &samplers, env, config);
+    let efficiencies = measure_with(&integrands, material.brdf.as_ref(), &samplers, env, config);
+    let reference_efficiency = efficiencies[reference_at].efficiency;
     let label = material.label();
-    let mut points: Vec<SweepPoint> = built
+    let points = built
         .iter()
         .zip(&efficiencies)
-        .map(|(b, e)| {
-            point(
-                &label,
-                &b.spec.to_string(),
-                b.tolerance,
-                b.sampler.storage_bytes(),
-                b.sampler.mean_vertices(),
-                e,
-            )
-        })
+        .map(|(b, e)| point(&label, b, e, reference_efficiency))
         .collect();
-    let uniform = points[0].efficiency;
-    for p in &mut points {
-        p.relative_efficiency = match (p.efficiency, uniform) {
-            (Some(e), Some(u)) if u > 0.0 => Some(e / u),
-            _ => None,
-        };
+    Ok((points, outcomes))
+}
+
+fn point(material: &str, b: &Built, e: &Efficiency, reference_efficiency: f64) -> SweepPoint {
+    let vertices = b.sampler.mean_vertices();
+    let mc = e.monte_carlo.as_ref();
+    let finite = |x: f64| x.is_finite().then_some(x);
+    SweepPoint {
+        material: material.to_string(),
+        sampler: b.spec.to_string(),
+        tolerance: b.tolerance,
+        resolution: b.sampler.resolution_label(),
+        is_reference: b.is_reference,
+        target_chosen: b.target_chosen,
+        storage_bytes: b.sampler.storage_bytes(),
+        mean_marginal_vertices: vertices.map(|v| v.0),
+        mean_conditional_vertices: vertices.map(|v| v.1),
+        ns_per_draw: e.timing.seconds_per_draw * 1e9,
+        ns_per_pdf: e.timing.seconds_per_pdf * 1e9,
+        ns_per_sampler: e.timing.sampler_seconds() * 1e9,
+        ns_per_eval: e.timing.seconds_per_eval * 1e9,
+        relative_variance: e.noise_free.relative_variance,
+        firefly: e.noise_free.firefly,
+        mc_relative_variance: mc.map(|m| m.relative_variance),
+        mc_relative_variance_rel_se: mc.map(|m| m.relative_variance_rel_se),
+        efficiency: finite(e.efficiency),
+        relative_efficiency: finite(relative(e.efficiency, reference_efficiency)),
     }
-    Ok(points)
 }
 
 /// The CSV header of [`write_csv`].
-pub const CSV_HEADER: &str = "material,sampler,tolerance,storage_bytes,mean_marginal_vertices,\
-mean_conditional_vertices,ns_per_draw,ns_per_pdf,ns_per_sample,variance,variance_rel_se,\
-efficiency,relative_efficiency";
+pub const CSV_HEADER: &str = "material,sampler,tolerance,resolution,is_reference,target_chosen,\
+storage_bytes,mean_marginal_vertices,mean_conditional_vertices,ns_per_draw,ns_per_pdf,\
+ns_per_sampler,ns_per_eval,relative_variance,firefly,mc_relative_variance,\
+mc_relative_variance_rel_se,efficiency,relative_efficiency";
 
 /// Write the points as CSV (empty fields for missing values).
 pub fn write_csv(points: &[SweepPoint], out: &mut impl Write) -> std::io::Result<()> {
@@ -182,18 +256,24 @@ pub fn write_csv(points: &[SweepPoint], out: &mut impl Write) -> std::io::Result
     for p in points {
         writeln!(
             out,
-            "{},{},{},{},{},{},{:.2},{:.2},{:.2},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{:.2},{:.2},{:.2},{:.2},{},{},{},{},{},{}",
             p.material,
             p.sampler,
             o(p.tolerance),
+            p.resolution,
+            p.is_reference,
+            p.target_chosen,
             p.storage_bytes,
             o(p.mean_marginal_vertices),
             o(p.mean_conditional_vertices),
             p.ns_per_draw,
             p.ns_per_pdf,
-            p.ns_per_sample,
-            p.variance,
-            p.variance_rel_se,
+            p.ns_per_sampler,
+            p.ns_per_eval,
+            p.relative_variance,
+            p.firefly,
+            o(p.mc_relative_variance),
+            o(p.mc_relative_variance_rel_se),
             o(p.efficiency),
             o(p.relative_efficiency),
         )?;
@@ -201,43 +281,67 @@ pub fn write_csv(points: &[SweepPoint], out: &mut impl Write) -> std::io::Result
     Ok(())
 }
 
-/// Plot efficiency (left) and variance (right) against storage: one curve
-/// per simplifier, the uniform sampler as a point, the cosine sampler as a
-/// line. The variance panel shows the accuracy trade free of timing noise.
-pub fn plot_sweep(points: &[SweepPoint], title: &str, svg: &Path, png: &Path) -> Result<()> {
-    let find = |name: &str| points.iter().find(|p| p.sampler == name);
-    let uniform = find("uniform").ok_or_else(|| Error::Plot {
-        path: svg.to_path_buf(),
-        message: "the sweep has no uniform point".into(),
-    })?;
-    let cosine = find("cosine");
+/// The sweep's figure: relative efficiency (left) and relative variance
+/// (right) against storage, one curve per simplifier, the other tabulated
+/// samplers and the points a target search chose as marked points; a
+/// sampler without tables (cosine) has no storage to place it at, and is
+/// printed as a figure in the panel instead, so that the axes fit the
+/// tabulated samplers. Returns the SVG text and the PNG bytes.
+pub fn plot_sweep(points: &[SweepPoint], title: &str, name: &Path) -> Result<(String, Vec<u8>)> {
     let panel = |y_label: &str, value: &dyn Fn(&SweepPoint) -> Option<f64>, legend: bool| {
         let mut series: Vec<Series> = Vec::new();
-        for p in points.iter().filter(|p| p.sampler.starts_with("adaptive")) {
+        let mut markers = Vec::new();
+        let mut notes = Vec::new();
+        for p in points {
             let Some(v) = value(p) else { continue };
             let xy = (p.storage_bytes as f64, v);
-            match series.iter_mut().find(|s| s.label == p.sampler) {
-                Some(s) => s.points.push(xy),
-                None => series.push(Series {
-                    label: p.sampler.clone(),
-                    points: vec![xy],
-                }),
+            if p.storage_bytes == 0 {
+                notes.push(format!("{} (no tables): {v:.2e}", p.sampler));
+            } else if p.target_chosen {
+                markers.push(Marker {
+                    label: format!("{} at the target", p.sampler),
+                    point: xy,
+                });
+            } else if p.tolerance.is_none() {
+                let reference = if p.is_reference { ", reference" } else { "" };
+                markers.push(Marker {
+                    label: format!("{} {}{reference}", p.sampler, p.resolution),
+                    point: xy,
+                });
+            } else {
+                match series.iter_mut().find(|s| s.label == p.sampler) {
+                    Some(s) => s.points.push(xy),
+                    None => series.push(Series {
+                        label: p.sampler.clone(),
+                        points: vec![xy],
+                        style: Style::Line,
+                    }),
+                }
             }
         }
         Panel {
+            x_label: "storage (bytes)".into(),
             y_label: y_label.to_string(),
             series,
-            uniform: (uniform.storage_bytes as f64, value(uniform).unwrap_or(0.0)),
-            cosine: cosine.and_then(value).unwrap_or(0.0),
+            markers,
+            notes,
             legend,
         }
     };
     let figure = Figure {
         title: title.to_string(),
         panels: vec![
-            panel("efficiency 1/(V t) (1/s)", &|p| p.efficiency, true),
-            panel("variance V", &|p| Some(p.variance), false),
+            panel(
+                "efficiency relative to the reference",
+                &|p| p.relative_efficiency,
+                true,
+            ),
+            panel(
+                "relative variance (quadrature)",
+                &|p| Some(p.relative_variance),
+                false,
+            ),
         ],
     };
-    crate::plot::plot_figure(&figure, svg, png)
+    figure_bytes(&figure, name)
 }

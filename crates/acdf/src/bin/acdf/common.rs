@@ -5,6 +5,7 @@ use std::io::{BufRead, BufWriter, Read};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use acdf::core::HemisphereGrid;
 use acdf::efficiency::EfficiencyConfig;
 use acdf::error::{Error, Result};
 use acdf::material::{load_material, Material};
@@ -12,7 +13,7 @@ use acdf::registry::{
     load_sampler_for, make_sampler_spec, sampler_help, sampler_long_help, AnySampler,
     SamplerOptions,
 };
-use acdf::spec::{parse_direction_line, MaterialSpec, SamplerSpec, DIRECTION_FIELDS};
+use acdf::spec::{parse_direction_line, MaterialSpec, SamplerAt, SamplerSpec, DIRECTION_FIELDS};
 use acdf_core::Vec3;
 use acdf_tabulated::Resolution;
 use clap::Args;
@@ -102,16 +103,21 @@ impl TableArgs {
 
 #[derive(Args, Debug, Clone)]
 pub struct MeasureArgs {
-    /// Draws per outgoing direction for the variance (12 directions).
+    /// Monte Carlo draws per outgoing direction for the cross-check of the
+    /// relative variance (12 directions); 0 skips it.
     #[arg(long, value_name = "N", default_value_t = 1 << 17)]
     pub samples: usize,
-    /// Draws per outgoing direction in each timed pass.
-    #[arg(long, value_name = "N", default_value_t = 1 << 13)]
+    /// Draws per outgoing direction in each timed repeat.
+    #[arg(long, value_name = "N", default_value_t = 1 << 12)]
     pub timing_samples: usize,
-    /// Timed passes per sampler, the fastest kept; a report takes the
-    /// passes of a material's samplers in turns.
-    #[arg(long, value_name = "N", default_value_t = 3)]
-    pub timing_passes: usize,
+    /// Timed repeats per sampler, the median kept; the samplers of a
+    /// material take their repeats in turns.
+    #[arg(long, value_name = "N", default_value_t = 9, alias = "timing-passes")]
+    pub timing_repeats: usize,
+    /// Quadrature cells per outgoing direction, θ_h rows x φ_h columns
+    /// over the half vector.
+    #[arg(long, value_name = "NVxNX", default_value = "1024x512")]
+    pub quadrature: String,
     /// Seed of the uniform numbers.
     #[arg(long, default_value_t = 2005)]
     pub seed: u64,
@@ -119,37 +125,118 @@ pub struct MeasureArgs {
 
 impl MeasureArgs {
     pub fn config(&self) -> Result<EfficiencyConfig> {
-        if self.samples < 2 || self.timing_samples < 1 || self.timing_passes < 1 {
+        if self.samples == 1 || self.timing_samples < 1 || self.timing_repeats < 1 {
             return Err(Error::InvalidArgument {
                 what: "sample count",
                 value: format!(
                     "{}/{}/{}",
-                    self.samples, self.timing_samples, self.timing_passes
+                    self.samples, self.timing_samples, self.timing_repeats
                 ),
-                reason: "need at least 2 draws for a variance, 1 to time and 1 timed pass".into(),
+                reason: "need 0 or at least 2 draws for a variance, 1 to time and 1 timed repeat"
+                    .into(),
             });
         }
         Ok(EfficiencyConfig {
             samples_per_direction: self.samples,
             timing_samples_per_direction: self.timing_samples,
-            timing_passes: self.timing_passes,
+            timing_repeats: self.timing_repeats,
+            grid: parse_quadrature(&self.quadrature)?,
             seed: self.seed,
             ..EfficiencyConfig::default()
         })
     }
 
     pub fn describe(&self, config: &EfficiencyConfig) -> String {
+        let cells = match config.grid {
+            HemisphereGrid::HalfVector { n_v, n_x } => format!("{n_v} x {n_x} half-vector cells"),
+            HemisphereGrid::EqualArea { n_cos, n_phi } => {
+                format!("{n_cos} x {n_phi} equal-area cells")
+            }
+        };
+        let mc = if config.samples_per_direction > 0 {
+            format!(
+                "{} draws per sampler (seed {})",
+                config.total_samples(),
+                config.seed
+            )
+        } else {
+            "off".to_string()
+        };
         format!(
-            "variance: {} outgoing directions x {} draws = {} draws per sampler (seed {}); \
-             time: best of {} single-thread passes of {} x {} draws",
+            "relative variance and firefly: quadrature on {cells} at each of {} outgoing \
+             directions; Monte Carlo check: {mc}; time: median of {} single-thread repeats of \
+             {} x {} draws (sample + pdf; BRDF evaluation apart)",
             config.outgoing.len(),
-            config.samples_per_direction,
-            config.total_samples(),
-            config.seed,
-            config.timing_passes,
+            config.timing_repeats,
             config.outgoing.len(),
             config.timing_samples_per_direction
         )
+    }
+}
+
+/// `NVxNX`, the cells of the half-vector quadrature.
+fn parse_quadrature(s: &str) -> Result<HemisphereGrid> {
+    let bad = |reason: &str| Error::InvalidArgument {
+        what: "quadrature",
+        value: s.to_string(),
+        reason: reason.to_string(),
+    };
+    let (v, x) = s
+        .split_once('x')
+        .ok_or_else(|| bad("expected NVxNX, e.g. 1024x128"))?;
+    let count = |t: &str| {
+        t.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|&n| (1..=1 << 14).contains(&n))
+            .ok_or_else(|| bad("each count must be a whole number from 1 to 16384"))
+    };
+    Ok(HemisphereGrid::HalfVector {
+        n_v: count(v)?,
+        n_x: count(x)?,
+    })
+}
+
+/// `--target-efficiency` and `--reference`, shared by `build`, `report`
+/// and `sweep`.
+#[derive(Args, Debug, Clone)]
+pub struct TargetArgs {
+    /// Instead of a tolerance, a quality target: for each adaptive sampler,
+    /// the largest tolerance (least storage) whose noise-free efficiency is
+    /// at least E times the reference's, found by a search over the
+    /// tolerance (steps of 4 from the simplifier's default, then 3
+    /// bisections). When no tolerance reaches it, the best found is
+    /// reported.
+    #[arg(long, value_name = "E")]
+    pub target_efficiency: Option<f64>,
+    /// The reference of the relative efficiency and the compression,
+    /// `NAME` or `NAME@RES` (default: uniform at the command's resolution;
+    /// with --target-efficiency, uniform@32x16x256x32, the seed's table).
+    #[arg(long, value_name = "SAMPLER")]
+    pub reference: Option<String>,
+}
+
+impl TargetArgs {
+    /// The target, checked: a finite positive number.
+    pub fn target(&self) -> Result<Option<f64>> {
+        match self.target_efficiency {
+            Some(e) if !(e.is_finite() && e > 0.0) => Err(Error::InvalidArgument {
+                what: "target efficiency",
+                value: e.to_string(),
+                reason: "must be a positive number (a fraction of the reference's efficiency)"
+                    .into(),
+            }),
+            t => Ok(t),
+        }
+    }
+
+    /// The reference: `--reference`, or the default for the mode.
+    pub fn reference(&self) -> Result<SamplerAt> {
+        match &self.reference {
+            Some(r) => r.parse(),
+            None if self.target_efficiency.is_some() => Ok(SamplerAt::PAPER_UNIFORM),
+            None => Ok(SamplerAt::plain(SamplerSpec::UNIFORM)),
+        }
     }
 }
 
@@ -207,16 +294,20 @@ pub fn stdout() -> BufWriter<std::io::StdoutLock<'static>> {
     BufWriter::new(std::io::stdout().lock())
 }
 
-/// Write `value` as pretty JSON to `path` (atomically), creating its
-/// directory.
-pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+/// Write `bytes` to `path` atomically (`acdf_core::fsio::write_atomic`),
+/// creating its directory: the one place where the report, sweep, survey
+/// and bench outputs reach the file system.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let text = serde_json::to_string_pretty(value)? + "\n";
-    Ok(acdf_core::fsio::write_atomic(path, |w| {
-        w.write_all(text.as_bytes())
-    })?)
+    Ok(acdf_core::fsio::write_atomic(path, |w| w.write_all(bytes))?)
+}
+
+/// Write `value` as pretty JSON to `path` ([`write_file`]).
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    write_file(path, (text + "\n").as_bytes())
 }
 
 /// The longest line of standard input read, in bytes.

@@ -120,11 +120,15 @@ enum Command {
     /// Build a tabulated sampler (uniform or adaptive) and save it to a file
     /// that `--sampler-file` loads without rebuilding.
     Build(build::Args),
-    /// The results table: storage, compression and estimator efficiency of
-    /// every sampler, per material.
+    /// The results table: storage, compression, noise-free relative
+    /// variance, firefly measure and efficiency of every sampler, per
+    /// material.
+    #[command(after_long_help = report::COLUMNS)]
     Report(report::Args),
-    /// Efficiency against storage for each simplifier over a range of
-    /// tolerances: CSV on stdout, CSV/JSON/SVG/PNG in the output directory.
+    /// Efficiency against storage for every sampler, each simplifier over a
+    /// range of tolerances: CSV on stdout, CSV/JSON/SVG/PNG in the output
+    /// directory.
+    #[command(after_long_help = report::COLUMNS)]
     Sweep(sweep::Args),
     /// Render a sphere lit by an environment with each sampler and compare
     /// with a high-count reference.

@@ -1,19 +1,19 @@
-//! `acdf sweep`: efficiency against storage for each simplifier over a
-//! range of tolerances.
+//! `acdf sweep`: efficiency against storage for every sampler of the
+//! registry, each simplifier over a range of tolerances.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use acdf::env::Sky;
-use acdf::error::{Error, Result};
+use acdf::error::Result;
 use acdf::spec::SimplifierName;
 use acdf::sweep::{
-    default_tolerance, plot_sweep, run_sweep, write_csv, SweepPoint, TOLERANCE_FACTORS,
+    default_tolerance, plot_sweep, run_sweep, write_csv, SweepPlan, SweepPoint, TOLERANCE_FACTORS,
 };
 
 use crate::common::{
-    bar, file_stem_safe, material, parse_list, stdout, write_json, MaterialArgs, MeasureArgs,
-    TableArgs,
+    bar, file_stem_safe, material, parse_list, stdout, write_file, write_json, MaterialArgs,
+    MeasureArgs, TableArgs, TargetArgs,
 };
 
 #[derive(clap::Args, Debug)]
@@ -21,8 +21,8 @@ pub struct Args {
     #[command(flatten)]
     material: MaterialArgs,
     // The help lists the adaptive plug-in's simplifiers.
-    #[arg(long, value_name = "LIST", default_value = "dp,vw,rw,optimal", help = simplifiers_help())]
-    simplifiers: String,
+    #[arg(long, value_name = "LIST", help = simplifiers_help())]
+    simplifiers: Option<String>,
     /// Tolerances, comma-separated (default: each simplifier's default
     /// tolerance times 1/16, 1/8, ..., 8).
     #[arg(long, value_name = "LIST")]
@@ -38,11 +38,13 @@ pub struct Args {
     /// Use the paper's resolution 32x16x256x32.
     #[arg(long)]
     paper: bool,
+    #[command(flatten)]
+    target: TargetArgs,
 }
 
 fn simplifiers_help() -> String {
     format!(
-        "Simplifiers to sweep, comma-separated, of {}",
+        "Simplifiers to sweep, comma-separated (default: all of them), of {}",
         SimplifierName::list()
     )
 }
@@ -50,21 +52,26 @@ fn simplifiers_help() -> String {
 /// [`MeasureArgs`] with the sweep's smaller defaults.
 #[derive(clap::Args, Debug, Clone)]
 struct SweepMeasureArgs {
-    /// Draws per outgoing direction for the variance (12 directions).
-    #[arg(long, value_name = "N", default_value_t = 1 << 15)]
+    /// Monte Carlo draws per outgoing direction for the cross-check (12
+    /// directions); 0 skips it.
+    #[arg(long, value_name = "N", default_value_t = 1 << 14)]
     samples: usize,
-    /// Draws per outgoing direction in each timed pass.
-    #[arg(long, value_name = "N", default_value_t = 1 << 12)]
+    /// Draws per outgoing direction in each timed repeat.
+    #[arg(long, value_name = "N", default_value_t = 1 << 11)]
     timing_samples: usize,
-    /// Timed passes per sampler, the fastest kept; the samplers take turns.
-    #[arg(long, value_name = "N", default_value_t = 3)]
-    timing_passes: usize,
+    /// Timed repeats per sampler, the median kept; the samplers take turns.
+    #[arg(long, value_name = "N", default_value_t = 7, alias = "timing-passes")]
+    timing_repeats: usize,
+    /// Quadrature cells per outgoing direction, θ_h rows x φ_h columns
+    /// over the half vector.
+    #[arg(long, value_name = "NVxNX", default_value = "1024x512")]
+    quadrature: String,
     /// Seed of the uniform numbers.
     #[arg(long, default_value_t = 2005)]
     seed: u64,
 }
 
-/// Measure the references and every simplifier at every tolerance, then
+/// Measure every sampler and every simplifier at every tolerance, then
 /// write the CSV, JSON, SVG and PNG and print the CSV.
 pub fn run(a: Args) -> Result<()> {
     let m = material(&a.material)?;
@@ -72,7 +79,10 @@ pub fn run(a: Args) -> Result<()> {
         "not recognised; the simplifiers are {}",
         SimplifierName::list()
     );
-    let simplifiers = parse_list(&a.simplifiers, "simplifier", &unknown, SimplifierName::find)?;
+    let simplifiers = match &a.simplifiers {
+        Some(list) => parse_list(list, "simplifier", &unknown, SimplifierName::find)?,
+        None => SimplifierName::all().collect(),
+    };
     let fixed: Option<Vec<f64>> = a
         .tolerances
         .as_deref()
@@ -92,37 +102,49 @@ pub fn run(a: Args) -> Result<()> {
     let measure = MeasureArgs {
         samples: a.measure.samples,
         timing_samples: a.measure.timing_samples,
-        timing_passes: a.measure.timing_passes,
+        timing_repeats: a.measure.timing_repeats,
+        quadrature: a.measure.quadrature.clone(),
         seed: a.measure.seed,
     };
     let config = measure.config()?;
+    let target = a.target.target()?;
+    let reference = a.target.reference()?;
     let per_simplifier = fixed.as_ref().map_or(TOLERANCE_FACTORS.len(), Vec::len);
-    // The two references, every simplifier at every tolerance, then the timing.
-    let total = 2 + simplifiers.len() * per_simplifier + 1;
+    // The reference and plain samplers (about three), every simplifier at
+    // every tolerance, the quadrature and the timing.
+    let total = 3 + simplifiers.len() * per_simplifier + 2;
     eprintln!("{}", measure.describe(&config));
-    let pb = bar(total as u64, "sweep");
-    let points = run_sweep(
-        &m,
-        &Sky::dome(),
-        &options,
-        &simplifiers,
-        |s| match &fixed {
+    eprintln!("reference {reference}");
+    let tolerances = |s: SimplifierName| -> Result<Vec<f64>> {
+        match &fixed {
             Some(t) => Ok(t.clone()),
             None => {
                 let d = default_tolerance(s);
                 Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
             }
-        },
-        &config,
-        |what| {
-            pb.set_message(what.to_string());
+        }
+    };
+    let plan = SweepPlan {
+        simplifiers: &simplifiers,
+        tolerances: &tolerances,
+        reference,
+        options,
+        target,
+    };
+    let pb = bar(total as u64, "sweep");
+    let result = run_sweep(&m, &Sky::dome(), &plan, &config, |what| {
+        pb.set_message(what.to_string());
+        if !what.starts_with("target:") {
             pb.inc(1);
-        },
-    );
+        }
+    });
     pb.finish_and_clear();
-    let points = points?;
+    let (points, outcomes) = result?;
+    for o in &outcomes {
+        eprintln!("{}", o.describe(&reference.to_string()));
+    }
     let title = format!(
-        "{}: efficiency against storage ({})",
+        "{}: efficiency against storage ({}, reference {reference})",
         m.label(),
         options.resolution
     );
@@ -131,20 +153,21 @@ pub fn run(a: Args) -> Result<()> {
 
 /// `sweep-LABEL.{csv,json,svg,png}` in `dir`, and the CSV on stdout.
 fn write_outputs(points: &[SweepPoint], dir: &Path, label: &str, title: &str) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let base = dir.join(format!("sweep-{}", file_stem_safe(label)));
     let csv_path = base.with_extension("csv");
     let mut csv = Vec::new();
     write_csv(points, &mut csv)?;
-    acdf_core::fsio::write_atomic(&csv_path, |w| w.write_all(&csv))?;
+    write_file(&csv_path, &csv)?;
     let json_path = base.with_extension("json");
     write_json(&json_path, &points)?;
-    let (svg, png) = (base.with_extension("svg"), base.with_extension("png"));
-    plot_sweep(points, title, &svg, &png)?;
+    let (svg_path, png_path) = (base.with_extension("svg"), base.with_extension("png"));
+    let (svg, png) = plot_sweep(points, title, &svg_path)?;
+    write_file(&svg_path, svg.as_bytes())?;
+    write_file(&png_path, &png)?;
     let mut out = stdout();
     out.write_all(&csv)?;
     out.flush()?;
-    for p in [&csv_path, &json_path, &svg, &png] {
+    for p in [&csv_path, &json_path, &svg_path, &png_path] {
         eprintln!("wrote {}", p.display());
     }
     Ok(())

@@ -1,0 +1,245 @@
+//! A quality target instead of a tolerance: the smallest adaptive sampler
+//! whose noise-free efficiency ([`efficiency`](crate::efficiency)) is at
+//! least a given fraction of a reference sampler's, found by searching the
+//! simplifier's tolerance.
+//!
+//! A larger tolerance keeps fewer vertices (less storage) and usually
+//! costs variance. The search starts at the simplifier's default tolerance
+//! and steps by factors of [`STEP`] (up while the target is met, down
+//! while it is not) until the target changes sides, then halves the
+//! bracketing interval in log-tolerance [`BISECTIONS`] times. Every
+//! candidate is built in full, its relative variance taken by quadrature
+//! and its time measured in turns with the reference's
+//! ([`time_samplers`]); the answer is the candidate of least storage among
+//! those that meet the target. When none does, down to
+//! [`STEPS_DOWN`] steps below the default and tolerance 0 (every vertex
+//! kept), the outcome says so and holds the best candidate found.
+
+use std::time::Instant;
+
+use acdf_core::BxdfSampler;
+use serde::Serialize;
+
+use crate::efficiency::{efficiency_of, time_samplers, EfficiencyConfig, Integrands};
+use crate::error::Result;
+use crate::material::Material;
+use crate::registry::{make_sampler_spec, AnySampler, SamplerOps, SamplerOptions};
+use crate::spec::{SamplerSpec, SimplifierName};
+use crate::sweep::default_tolerance;
+
+/// The factor between the tolerances of the stepping phase.
+pub const STEP: f64 = 4.0;
+/// Steps above the default tolerance at most.
+pub const STEPS_UP: usize = 6;
+/// Steps below the default tolerance at most (then tolerance 0).
+pub const STEPS_DOWN: usize = 6;
+/// Halvings of the bracketing interval in log-tolerance.
+pub const BISECTIONS: usize = 3;
+
+/// One tolerance the search tried.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    pub tolerance: f64,
+    pub storage_bytes: usize,
+    /// By quadrature.
+    pub relative_variance: f64,
+    /// Efficiency over the reference's, timed in turns with it.
+    pub relative_efficiency: f64,
+    pub build_seconds: f64,
+}
+
+/// What the search found for one simplifier.
+#[derive(Debug, Clone, Serialize)]
+pub struct TargetOutcome {
+    /// `adaptive:SIMPLIFIER`.
+    pub sampler: String,
+    /// The fraction of the reference's efficiency asked for.
+    pub target: f64,
+    /// Whether some tolerance met it.
+    pub reached: bool,
+    /// The chosen candidate: the least storage among those that meet the
+    /// target, or, when none does, the most efficient one.
+    pub chosen: Candidate,
+    /// Every candidate, in the order tried.
+    pub tried: Vec<Candidate>,
+}
+
+impl TargetOutcome {
+    /// One line for the user: what was found, or that the target was not
+    /// reached and the best found.
+    pub fn describe(&self, reference: &str) -> String {
+        let c = &self.chosen;
+        if self.reached {
+            format!(
+                "{}: tolerance {:.3e} meets {} x the efficiency of {reference} ({:.3}, {} bytes; {} tolerances tried)",
+                self.sampler,
+                c.tolerance,
+                self.target,
+                c.relative_efficiency,
+                c.storage_bytes,
+                self.tried.len()
+            )
+        } else {
+            format!(
+                "{}: no tolerance reaches {} x the efficiency of {reference}; the best found is {:.3} at tolerance {:.3e} ({} bytes; {} tolerances tried)",
+                self.sampler,
+                self.target,
+                c.relative_efficiency,
+                c.tolerance,
+                c.storage_bytes,
+                self.tried.len()
+            )
+        }
+    }
+}
+
+/// The reference a search compares with: a built sampler and its relative
+/// variance on the same integrands.
+pub struct Reference<'a> {
+    pub sampler: &'a dyn BxdfSampler,
+    pub relative_variance: f64,
+}
+
+/// Search the tolerance of `simplifier` (at `base`'s resolution and cosine
+/// mixing) for the smallest sampler of `material` whose efficiency is at
+/// least `target` times `reference`'s, on `integrands` (see the module
+/// documentation). Returns the outcome and the chosen sampler, built.
+/// `progress` is called with each tolerance before it is tried.
+#[allow(clippy::too_many_arguments)]
+pub fn search_tolerance(
+    material: &Material,
+    simplifier: SimplifierName,
+    base: &SamplerOptions,
+    reference: &Reference,
+    integrands: &Integrands,
+    config: &EfficiencyConfig,
+    target: f64,
+    mut progress: impl FnMut(f64),
+) -> Result<(TargetOutcome, AnySampler)> {
+    let spec = SamplerSpec::adaptive(simplifier);
+    let mut tried: Vec<(Candidate, AnySampler)> = Vec::new();
+    let mut try_tolerance = |tolerance: f64| -> Result<(bool, usize)> {
+        progress(tolerance);
+        let options = SamplerOptions {
+            tolerance: Some(tolerance),
+            ..*base
+        };
+        let sampler = make_sampler_spec(spec, material, &options)?;
+        let start = Instant::now();
+        sampler.build_all()?;
+        let build_seconds = start.elapsed().as_secs_f64();
+        let noise_free = integrands.noise_free(&sampler);
+        let times = time_samplers(
+            material.brdf.as_ref(),
+            &[reference.sampler, &sampler],
+            config,
+        );
+        let reference_efficiency =
+            efficiency_of(reference.relative_variance, times[0].sampler_seconds());
+        let efficiency = efficiency_of(noise_free.relative_variance, times[1].sampler_seconds());
+        let relative_efficiency = relative(efficiency, reference_efficiency);
+        let candidate = Candidate {
+            tolerance,
+            storage_bytes: sampler.storage_bytes(),
+            relative_variance: noise_free.relative_variance,
+            relative_efficiency,
+            build_seconds,
+        };
+        let met = relative_efficiency >= target;
+        tried.push((candidate, sampler));
+        Ok((met, tried.len() - 1))
+    };
+
+    let start = base
+        .tolerance
+        .filter(|t| t.is_finite() && *t > 0.0)
+        .unwrap_or_else(|| default_tolerance(simplifier));
+    // (tolerance that meets the target, tolerance that does not).
+    let (mut good, mut bad): (Option<f64>, Option<f64>) = (None, None);
+    if try_tolerance(start)?.0 {
+        good = Some(start);
+        let mut t = start;
+        for _ in 0..STEPS_UP {
+            t *= STEP;
+            if try_tolerance(t)?.0 {
+                good = Some(t);
+            } else {
+                bad = Some(t);
+                break;
+            }
+        }
+    } else {
+        bad = Some(start);
+        let mut t = start;
+        for _ in 0..STEPS_DOWN {
+            t /= STEP;
+            if try_tolerance(t)?.0 {
+                good = Some(t);
+                break;
+            }
+            bad = Some(t);
+        }
+        if good.is_none() && try_tolerance(0.0)?.0 {
+            good = Some(0.0);
+        }
+    }
+    if let (Some(mut lo), Some(mut hi)) = (good, bad) {
+        if lo > 0.0 {
+            for _ in 0..BISECTIONS {
+                let mid = (lo * hi).sqrt();
+                if try_tolerance(mid)?.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+        }
+    }
+
+    let meets = |c: &Candidate| c.relative_efficiency >= target;
+    let reached = tried.iter().any(|(c, _)| meets(c));
+    let best = if reached {
+        tried
+            .iter()
+            .enumerate()
+            .filter(|(_, (c, _))| meets(c))
+            .min_by(|(_, (a, _)), (_, (b, _))| {
+                a.storage_bytes
+                    .cmp(&b.storage_bytes)
+                    .then(b.tolerance.total_cmp(&a.tolerance))
+            })
+            .map(|(k, _)| k)
+    } else {
+        tried
+            .iter()
+            .enumerate()
+            .max_by(|(_, (a, _)), (_, (b, _))| {
+                a.relative_efficiency.total_cmp(&b.relative_efficiency)
+            })
+            .map(|(k, _)| k)
+    }
+    .expect("the search tries at least one tolerance");
+    let candidates: Vec<Candidate> = tried.iter().map(|(c, _)| c.clone()).collect();
+    let (chosen, sampler) = tried.swap_remove(best);
+    Ok((
+        TargetOutcome {
+            sampler: spec.to_string(),
+            target,
+            reached,
+            chosen,
+            tried: candidates,
+        },
+        sampler,
+    ))
+}
+
+/// a / b, 0 when b is infinite and a is not, 1 when both are infinite
+/// (two samplers without variance), never NaN.
+pub fn relative(a: f64, b: f64) -> f64 {
+    match (a.is_finite(), b.is_finite()) {
+        (true, true) if b > 0.0 => a / b,
+        (false, false) => 1.0,
+        (true, false) => 0.0,
+        _ => f64::INFINITY,
+    }
+}
