@@ -186,7 +186,7 @@ fn an_interrupted_save_leaves_no_file_under_the_final_name() {
     let missing = dir.path().join("no-such-dir").join("x.acdfs");
     assert!(matches!(
         uniform("lambert").save(&missing),
-        Err(PersistError::Io { .. })
+        Err(PersistError::File(_))
     ));
     assert!(!missing.exists());
     // Overwriting replaces the old file whole and leaves no temporary file.

@@ -62,12 +62,6 @@ pub const ENVELOPE_BYTES: usize = 8 + 4 + 8 + 4;
 /// Everything that can be wrong with a sampler file.
 #[derive(Debug, thiserror::Error)]
 pub enum PersistError {
-    /// The file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
     /// Writing or reading the file failed, was refused or hit a bound
     /// ([`acdf_core::fsio`]).
     #[error("{0}")]

@@ -702,7 +702,7 @@ mod tests {
         match load_sampler(&path) {
             Err(e @ Error::UnknownSamplerKind { .. }) => {
                 let text = e.to_string();
-                assert!(text.contains("`mystery`"), "{text}");
+                assert!(text.contains("\"mystery\""), "{text}");
                 for kind in file_kinds() {
                     assert!(text.contains(kind), "{text} lacks {kind}");
                 }

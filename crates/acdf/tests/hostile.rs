@@ -127,6 +127,22 @@ fn merl_bytes(raw: impl Fn(usize, usize) -> f64) -> Vec<u8> {
     b
 }
 
+/// `acdf build` of a uniform sampler of `material` at `resolution` into
+/// `out`.
+fn build_args<'a>(material: &'a str, resolution: &'a str, out: &'a Path) -> [&'a str; 9] {
+    [
+        "build",
+        "--material",
+        material,
+        "--sampler",
+        "uniform",
+        "--resolution",
+        resolution,
+        "--out",
+        p(out),
+    ]
+}
+
 fn bake(material: &str, out: &Path) {
     assert_ok(&run(&["bake", "--material", material, "--out", p(out)]));
 }
@@ -206,19 +222,7 @@ fn f1_bake_is_atomic_under_a_full_disk_and_concurrent_writers() {
 fn f2_build_refuses_special_targets_and_keeps_modes() {
     use std::os::unix::fs::{FileTypeExt, PermissionsExt};
     let dir = tempfile::tempdir().unwrap();
-    let build = |out: &Path| {
-        run(&[
-            "build",
-            "--material",
-            "builtin:lambert",
-            "--sampler",
-            "uniform",
-            "--resolution",
-            "4x1x8x4",
-            "--out",
-            p(out),
-        ])
-    };
+    let build = |out: &Path| run(&build_args("builtin:lambert", "4x1x8x4", out));
     let fifo = dir.path().join("fifo.acdfs");
     assert!(Command::new("mkfifo")
         .arg(&fifo)
@@ -267,17 +271,7 @@ fn f3_saved_samplers_match_materials_by_content_and_fix_their_options() {
     bake("builtin:nickel", &nickel);
     bake("builtin:lambert", &impostor);
     let file = dir.path().join("nickel.acdfs");
-    assert_ok(&run(&[
-        "build",
-        "--material",
-        p(&nickel),
-        "--sampler",
-        "uniform",
-        "--resolution",
-        "4x1x16x8",
-        "--out",
-        p(&file),
-    ]));
+    assert_ok(&run(&build_args(p(&nickel), "4x1x16x8", &file)));
     let sample = |material: &Path, extra: &[&str]| {
         let mut args = vec![
             "sample",
@@ -402,17 +396,7 @@ fn f5_stdin_lines_are_bounded_and_not_echoed_whole() {
 fn f6_sizes_beyond_the_memory_limit_are_refused_before_allocating() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("huge.acdfs");
-    let o = run(&[
-        "build",
-        "--material",
-        "builtin:nickel",
-        "--sampler",
-        "uniform",
-        "--resolution",
-        "65536x1x2048x2048",
-        "--out",
-        p(&out),
-    ]);
+    let o = run(&build_args("builtin:nickel", "65536x1x2048x2048", &out));
     assert_one_line_error(&o, "memory limit");
     assert!(text(&o.stderr).contains("65536x1x2048x2048"));
     let render = run(&[
@@ -459,18 +443,8 @@ fn f7_output_failures_end_cleanly_and_sigpipe_kills_as_in_unix_tools() {
             .open("/dev/full")
             .unwrap()
     };
-    let build = &[
-        "build",
-        "--material",
-        "builtin:lambert",
-        "--sampler",
-        "uniform",
-        "--resolution",
-        "4x1x8x4",
-        "--out",
-        p(&out),
-    ];
-    let o = finish(command("", build).stdout(full()).spawn().unwrap(), 60);
+    let build = build_args("builtin:lambert", "4x1x8x4", &out);
+    let o = finish(command("", &build).stdout(full()).spawn().unwrap(), 60);
     assert_one_line_error(&o, "cannot write to standard output");
     assert!(out.exists(), "the sampler is saved before the summary");
 
@@ -528,26 +502,35 @@ fn f7_output_failures_end_cleanly_and_sigpipe_kills_as_in_unix_tools() {
     assert!(o.stderr.is_empty(), "{}", text(&o.stderr));
 }
 
+/// A render of 8 × 8 pixels at 1 sample per pixel into `out`, with
+/// `extra` arguments.
+fn small_render(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--width",
+        "8",
+        "--spp",
+        "1",
+        "--ref-spp",
+        "1",
+        "--out",
+        p(out),
+    ];
+    args.extend(extra);
+    run(&args)
+}
+
 /// Finding 8: `--seconds=1e30` panicked converting to a Duration.
 #[test]
 fn f8_equal_time_seconds_beyond_a_year_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     for seconds in ["1e30", "inf", "-1", "0"] {
-        let o = run(&[
-            "render",
-            "--material",
-            "builtin:lambert",
-            "--width",
-            "8",
-            "--spp",
-            "1",
-            "--ref-spp",
-            "1",
-            "--equal-time",
-            &format!("--seconds={seconds}"),
-            "--out",
-            p(dir.path()),
-        ]);
+        let o = small_render(
+            dir.path(),
+            &["--equal-time", &format!("--seconds={seconds}")],
+        );
         assert_one_line_error(&o, "seconds");
     }
 }
@@ -743,20 +726,7 @@ fn f12_baking_a_merl_material_reproduces_its_table() {
 fn f13_nan_exposure_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     for exposure in ["nan", "inf", "-1"] {
-        let o = run(&[
-            "render",
-            "--material",
-            "builtin:lambert",
-            "--width",
-            "8",
-            "--spp",
-            "1",
-            "--ref-spp",
-            "1",
-            &format!("--exposure={exposure}"),
-            "--out",
-            p(dir.path()),
-        ]);
+        let o = small_render(dir.path(), &[&format!("--exposure={exposure}")]);
         assert_one_line_error(&o, "exposure");
     }
 }

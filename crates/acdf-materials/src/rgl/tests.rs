@@ -297,49 +297,30 @@ fn overlapping_fields_wild_angles_and_zero_tables_are_refused() {
             "{field}: {e}"
         );
     };
-    invalid(
-        synthetic_bytes_with(|n, v| {
-            if n == "theta_i" {
-                v[2] = 300.0
-            }
-        }),
-        "theta_i",
-    );
-    invalid(
-        synthetic_bytes_with(|n, v| {
-            if n == "theta_i" {
-                v[0] = -0.5
-            }
-        }),
-        "theta_i",
-    );
-    invalid(
-        synthetic_bytes_with(|n, v| {
-            if n == "phi_i" {
-                v[0] = 100.0
-            }
-        }),
-        "phi_i",
-    );
-    for field in ["vndf", "sigma", "luminance", "ndf", "rgb"] {
+    // The field edited (and named in the error), and the edit.
+    type Edit = fn(&mut [f32]);
+    let cases: [(&str, Edit); 9] = [
+        ("theta_i", |v| v[2] = 300.0),
+        ("theta_i", |v| v[0] = -0.5),
+        ("phi_i", |v| v[0] = 100.0),
+        ("vndf", |v| v.fill(0.0)),
+        ("sigma", |v| v.fill(0.0)),
+        ("luminance", |v| v.fill(0.0)),
+        ("ndf", |v| v.fill(0.0)),
+        ("rgb", |v| v.fill(0.0)),
+        // One slice of zeros is enough to refuse a density.
+        ("vndf", |v| v[25..50].fill(0.0)),
+    ];
+    for (field, edit) in cases {
         invalid(
             synthetic_bytes_with(|n, v| {
                 if n == field {
-                    v.fill(0.0)
+                    edit(v)
                 }
             }),
             field,
         );
     }
-    // One slice of zeros is enough to refuse a density.
-    invalid(
-        synthetic_bytes_with(|n, v| {
-            if n == "vndf" {
-                v[25..50].fill(0.0)
-            }
-        }),
-        "vndf",
-    );
     invalid(
         synthetic_bytes_with(|n, v| {
             if n == "sigma" {

@@ -18,6 +18,7 @@
 //! ignored, since there is nowhere left to report it.
 
 /// `print!` that never panics; see the crate documentation.
+#[allow(unused_macros)]
 macro_rules! print {
     ($($arg:tt)*) => {
         $crate::print_or_exit(format_args!($($arg)*))
@@ -25,6 +26,7 @@ macro_rules! print {
 }
 
 /// `println!` that never panics; see the crate documentation.
+#[allow(unused_macros)]
 macro_rules! println {
     () => {
         $crate::print_or_exit(format_args!("\n"))
@@ -43,6 +45,7 @@ macro_rules! eprint {
 }
 
 /// `eprintln!` that ignores a failure to write stderr.
+#[allow(unused_macros)]
 macro_rules! eprintln {
     ($($arg:tt)*) => {
         $crate::eprint_lossy(format_args!("{}\n", format_args!($($arg)*)))
