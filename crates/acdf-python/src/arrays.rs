@@ -70,6 +70,9 @@ pub fn read<const K: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Rows
             format!("`{name}` must be an array of float32 or float64, {what}"),
         )
     };
+    if obj.is_none() {
+        return Err(bad_dtype("got None".into()));
+    }
     let array = match obj.cast::<PyUntypedArray>() {
         Ok(a) => a.clone(),
         Err(_) => py

@@ -9,45 +9,16 @@ use acdf::spec::DEFAULT_REPORT_MATERIALS;
 use acdf::sweep::{default_tolerance, run_sweep, TOLERANCE_FACTORS};
 use acdf::{EfficiencyConfig, SamplerOptions, SamplerSpec, SimplifierName};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyString};
-use serde_json::Value;
 
 use crate::errors::{raise, IntoPyResult};
 use crate::material::Material;
 use crate::sampler::parse_resolution;
 
-/// A JSON value as the Python object `json.loads` would give.
-fn to_python<'py>(py: Python<'py>, value: &Value) -> PyResult<Bound<'py, PyAny>> {
-    Ok(match value {
-        Value::Null => py.None().into_bound(py),
-        Value::Bool(b) => b.into_pyobject(py)?.to_owned().into_any(),
-        Value::Number(n) => match (n.as_u64(), n.as_i64()) {
-            (Some(u), _) => u.into_pyobject(py)?.into_any(),
-            (None, Some(i)) => i.into_pyobject(py)?.into_any(),
-            _ => n.as_f64().unwrap_or(f64::NAN).into_pyobject(py)?.into_any(),
-        },
-        Value::String(s) => PyString::new(py, s).into_any(),
-        Value::Array(items) => {
-            let list = PyList::empty(py);
-            for item in items {
-                list.append(to_python(py, item)?)?;
-            }
-            list.into_any()
-        }
-        Value::Object(map) => {
-            let dict = PyDict::new(py);
-            for (k, v) in map {
-                dict.set_item(k, to_python(py, v)?)?;
-            }
-            dict.into_any()
-        }
-    })
-}
-
-/// Rows serialised as the command's JSON, then as a list of dicts.
+/// Rows serialised as the command's JSON, then read by Python's `json`
+/// module: a list of dicts whose keys keep the order of the JSON output.
 fn rows<'py, T: serde::Serialize>(py: Python<'py>, rows: &[T]) -> PyResult<Bound<'py, PyAny>> {
-    let value = serde_json::to_value(rows).map_err(|e| raise(py, "Error", e.to_string()))?;
-    to_python(py, &value)
+    let text = serde_json::to_string(rows).map_err(|e| raise(py, "Error", e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
 }
 
 /// A material argument: an `acdf.Material` or a spec string.

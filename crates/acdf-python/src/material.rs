@@ -9,7 +9,7 @@ use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
 use crate::arrays::{chunked, common_len, read, unit};
-use crate::errors::{require_file, IntoPyResult};
+use crate::errors::{raise, require_file, IntoPyResult};
 
 /// A measured or analytic BRDF.
 ///
@@ -58,8 +58,27 @@ impl Material {
     /// name `acdf.UnknownNameError`, a malformed file `acdf.MaterialError`.
     #[staticmethod]
     #[pyo3(signature = (spec, nbrdf_weights = None))]
-    fn load(py: Python<'_>, spec: &str, nbrdf_weights: Option<PathBuf>) -> PyResult<Material> {
-        Material::load_spec(py, spec, nbrdf_weights)
+    fn load(
+        py: Python<'_>,
+        spec: &Bound<'_, PyAny>,
+        nbrdf_weights: Option<PathBuf>,
+    ) -> PyResult<Material> {
+        // A path may come as a str or an os.PathLike.
+        let text = match spec.extract::<String>() {
+            Ok(s) => s,
+            Err(_) => spec
+                .extract::<PathBuf>()?
+                .to_str()
+                .ok_or_else(|| {
+                    raise(
+                        py,
+                        "InvalidArgumentError",
+                        "invalid material path: not valid UTF-8",
+                    )
+                })?
+                .to_string(),
+        };
+        Material::load_spec(py, &text, nbrdf_weights)
     }
 
     /// The spec it was loaded from, as the command line names it.
