@@ -2,7 +2,10 @@
 //! of shape `(K,)` or `N` of them, shape `(N, K)`, as float32 or float64),
 //! and the parallel loop that runs a batch in chunks.
 
-use numpy::ndarray::{ArrayView1, Axis};
+use std::borrow::Cow;
+
+use acdf_core::{Vec2, Vec3};
+use numpy::ndarray::Axis;
 use numpy::{
     Element, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -17,18 +20,43 @@ use crate::errors::raise;
 pub const PARALLEL_MIN: usize = 8192;
 
 /// Rows per task of a parallel batch.
-const CHUNK: usize = 2048;
+pub const CHUNK: usize = 2048;
 
-/// One argument of a batch call: a single `K`-vector, broadcast against the
-/// other arguments, or one per row.
-#[derive(Debug, Clone)]
-pub enum Rows<const K: usize> {
-    One([f32; K]),
-    Many(Vec<[f32; K]>),
+/// A row type of the batch calls: a direction ([`Vec3`]) or a pair of
+/// uniform numbers ([`Vec2`]).
+pub trait Row: Copy + Send + Sync + 'static {
+    /// Components per row.
+    const K: usize;
+    /// The row of `K` components.
+    fn from_components(c: &[f32]) -> Self;
 }
 
-impl<const K: usize> Rows<K> {
-    /// The row count, `None` for a single vector.
+impl Row for Vec3 {
+    const K: usize = 3;
+    #[inline]
+    fn from_components(c: &[f32]) -> Self {
+        Vec3::new(c[0], c[1], c[2])
+    }
+}
+
+impl Row for Vec2 {
+    const K: usize = 2;
+    #[inline]
+    fn from_components(c: &[f32]) -> Self {
+        Vec2::new(c[0], c[1])
+    }
+}
+
+/// One argument of a batch call: a single row, broadcast against the other
+/// arguments, or one per row.
+#[derive(Debug, Clone)]
+pub enum Rows<T> {
+    One(T),
+    Many(Vec<T>),
+}
+
+impl<T: Row> Rows<T> {
+    /// The row count, `None` for a single row.
     pub fn len(&self) -> Option<usize> {
         match self {
             Rows::One(_) => None,
@@ -36,20 +64,19 @@ impl<const K: usize> Rows<K> {
         }
     }
 
-    /// Row `k` (the single vector for every `k`).
-    #[inline]
-    pub fn get(&self, k: usize) -> [f32; K] {
+    /// Rows `start..start + n`: a view of them, or the single row repeated.
+    pub fn chunk(&self, start: usize, n: usize) -> Cow<'_, [T]> {
         match self {
-            Rows::One(v) => *v,
-            Rows::Many(v) => v[k],
+            Rows::One(v) => Cow::Owned(vec![*v; n]),
+            Rows::Many(v) => Cow::Borrowed(&v[start..start + n]),
         }
     }
 
-    /// Apply `f` to every vector.
-    pub fn map_in_place(&mut self, f: impl Fn([f32; K]) -> [f32; K]) {
+    /// Apply `f` to every row (in parallel for a large batch).
+    pub fn map_in_place(&mut self, f: impl Fn(T) -> T + Sync) {
         match self {
             Rows::One(v) => *v = f(*v),
-            Rows::Many(v) => v.iter_mut().for_each(|r| *r = f(*r)),
+            Rows::Many(v) => chunked(v, |_, c| c.iter_mut().for_each(|r| *r = f(*r))),
         }
     }
 }
@@ -61,7 +88,7 @@ impl<const K: usize> Rows<K> {
 /// dtype raises `acdf.DTypeError`, as does what `asarray` cannot convert;
 /// another shape raises `acdf.ShapeError`. float64 is rounded to float32,
 /// the precision of every computation.
-pub fn read<const K: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Rows<K>> {
+pub fn read<T: Row>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Rows<T>> {
     let py = obj.py();
     let bad_dtype = |what: String| {
         raise(
@@ -83,51 +110,49 @@ pub fn read<const K: usize>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Rows
     };
     let dtype = array.dtype();
     if dtype.is_equiv_to(&numpy::dtype::<f32>(py)) {
-        rows_of::<f32, K>(&array, name, |x| x)
+        rows_of::<f32, T>(&array, name, |x| x)
     } else if dtype.is_equiv_to(&numpy::dtype::<f64>(py)) {
-        rows_of::<f64, K>(&array, name, |x| x as f32)
+        rows_of::<f64, T>(&array, name, |x| x as f32)
     } else {
         Err(bad_dtype(format!("got dtype {dtype}")))
     }
 }
 
-fn rows_of<T: Element + Copy, const K: usize>(
+fn rows_of<E: Element + Copy, T: Row>(
     array: &Bound<'_, PyUntypedArray>,
     name: &str,
-    to_f32: impl Fn(T) -> f32,
-) -> PyResult<Rows<K>> {
+    to_f32: impl Fn(E) -> f32,
+) -> PyResult<Rows<T>> {
     let py = array.py();
-    let typed = array.cast::<PyArrayDyn<T>>()?;
-    let readonly: PyReadonlyArrayDyn<'_, T> = typed.readonly();
+    let typed = array.cast::<PyArrayDyn<E>>()?;
+    let readonly: PyReadonlyArrayDyn<'_, E> = typed.readonly();
     let view = readonly.as_array();
-    let shape = view.shape();
-    let bad_shape = || {
-        raise(
+    let k = T::K;
+    let row = |values: &mut dyn Iterator<Item = &E>| {
+        let mut c = [0.0f32; 3];
+        for (slot, &x) in c.iter_mut().zip(values) {
+            *slot = to_f32(x);
+        }
+        T::from_components(&c[..k])
+    };
+    match view.shape() {
+        [n] if *n == k => Ok(Rows::One(row(&mut view.iter()))),
+        [_, n] if *n == k => Ok(Rows::Many(match readonly.as_slice() {
+            // C-contiguous: read the buffer directly.
+            Ok(flat) => flat.chunks_exact(k).map(|c| row(&mut c.iter())).collect(),
+            Err(_) => view
+                .axis_iter(Axis(0))
+                .map(|r| row(&mut r.iter()))
+                .collect(),
+        })),
+        shape => Err(raise(
             py,
             "ShapeError",
             format!(
-                "`{name}` must have shape ({K},) or (N, {K}), got {}",
+                "`{name}` must have shape ({k},) or (N, {k}), got {}",
                 shape_text(shape)
             ),
-        )
-    };
-    let vector = |row: ArrayView1<'_, T>| {
-        let mut v = [0.0f32; K];
-        for (slot, &x) in v.iter_mut().zip(row.iter()) {
-            *slot = to_f32(x);
-        }
-        v
-    };
-    match shape {
-        [k] if *k == K => Ok(Rows::One(vector(
-            view.view().into_dimensionality().map_err(|_| bad_shape())?,
-        ))),
-        [_, k] if *k == K => Ok(Rows::Many(
-            view.axis_iter(Axis(0))
-                .map(|row| vector(row.into_dimensionality().expect("a row of a 2-D array")))
-                .collect(),
         )),
-        _ => Err(bad_shape()),
     }
 }
 
@@ -172,22 +197,27 @@ pub fn common_len(py: Python<'_>, lens: &[(&str, Option<usize>)]) -> PyResult<Op
 /// differs from 1 by more than float32 rounding is normalised (a zero or
 /// non-finite one becomes 0, which every call treats as below the horizon);
 /// a unit vector is used as given, bit for bit.
-pub fn unit(v: [f32; 3]) -> [f32; 3] {
-    let g = glam::Vec3::from(v);
-    if (g.length_squared() - 1.0).abs() <= 4.0 * f32::EPSILON {
+pub fn unit(v: Vec3) -> Vec3 {
+    if (v.length_squared() - 1.0).abs() <= 4.0 * f32::EPSILON {
         v
     } else {
-        g.normalize_or_zero().into()
+        v.normalize_or_zero()
     }
 }
 
-/// Run `each(start, out_chunk)` over `out` in chunks: on rayon's pool when
-/// `out` has at least [`PARALLEL_MIN`] items, else on this thread.
+/// Run `each(start_row, out_chunk)` over `out` in chunks: on rayon's pool
+/// when `out` has at least [`PARALLEL_MIN`] items, else on this thread.
 pub fn chunked<T: Send>(out: &mut [T], each: impl Fn(usize, &mut [T]) + Sync) {
-    if out.len() < PARALLEL_MIN {
+    chunked_by(out, 1, each)
+}
+
+/// [`chunked`] for `out` holding `width` values per row: the chunks hold
+/// whole rows and `start_row` counts rows.
+pub fn chunked_by<T: Send>(out: &mut [T], width: usize, each: impl Fn(usize, &mut [T]) + Sync) {
+    if out.len() < PARALLEL_MIN * width {
         each(0, out);
     } else {
-        out.par_chunks_mut(CHUNK)
+        out.par_chunks_mut(CHUNK * width)
             .enumerate()
             .for_each(|(k, chunk)| each(k * CHUNK, chunk));
     }

@@ -8,7 +8,7 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
-use crate::arrays::{chunked, common_len, read, unit};
+use crate::arrays::{chunked_by, common_len, read, unit};
 use crate::errors::{raise, require_file, IntoPyResult};
 
 /// A measured or analytic BRDF.
@@ -120,27 +120,27 @@ impl Material {
         wo: &Bound<'py, PyAny>,
         wi: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut wo = read::<3>(wo, "wo")?;
-        let mut wi = read::<3>(wi, "wi")?;
+        let mut wo = read::<Vec3>(wo, "wo")?;
+        let mut wi = read::<Vec3>(wi, "wi")?;
         let n = common_len(py, &[("wo", wo.len()), ("wi", wi.len())])?;
         let brdf = self.inner.brdf.clone();
         let out = py.detach(move || {
             wo.map_in_place(unit);
             wi.map_in_place(unit);
-            let mut out = vec![[0.0f32; 3]; n.unwrap_or(1)];
-            chunked(&mut out, |start, chunk| {
-                for (k, o) in chunk.iter_mut().enumerate() {
-                    let f = brdf.eval(Vec3::from(wo.get(start + k)), Vec3::from(wi.get(start + k)));
-                    *o = f.into();
+            let mut out = vec![0.0f32; 3 * n.unwrap_or(1)];
+            chunked_by(&mut out, 3, |start, chunk| {
+                let len = chunk.len() / 3;
+                let (wo, wi) = (wo.chunk(start, len), wi.chunk(start, len));
+                for (k, o) in chunk.chunks_exact_mut(3).enumerate() {
+                    o.copy_from_slice(&brdf.eval(wo[k], wi[k]).to_array());
                 }
             });
             out
         });
         match n {
-            None => Ok(PyArray1::from_vec(py, out[0].to_vec()).into_any()),
+            None => Ok(PyArray1::from_vec(py, out).into_any()),
             Some(n) => {
-                let flat: Vec<f32> = out.into_iter().flatten().collect();
-                let array = Array2::from_shape_vec((n, 3), flat).expect("n rows of 3");
+                let array = Array2::from_shape_vec((n, 3), out).expect("n rows of 3");
                 Ok(array.into_pyarray(py).into_any())
             }
         }

@@ -13,8 +13,9 @@ use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyString, PyTuple};
 use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
 
-use crate::arrays::{chunked, common_len, read, unit, Rows};
+use crate::arrays::{chunked, common_len, read, unit, Rows, CHUNK, PARALLEL_MIN};
 use crate::errors::{raise, require_file, IntoPyResult};
 use crate::material::Material;
 
@@ -116,39 +117,45 @@ pub fn parse_resolution(r: &Bound<'_, PyAny>) -> PyResult<Resolution> {
     }
 }
 
-/// The columns of a batch of draws: wi (N×3), pdf, valid; a failed draw
-/// is (0, 0, 0), 0, false, as `acdf sample` prints it.
-fn split(draws: &[Option<BxdfSample>]) -> (Vec<f32>, Vec<f32>, Vec<bool>) {
-    let mut wi = Vec::with_capacity(draws.len() * 3);
-    let mut pdf = Vec::with_capacity(draws.len());
-    let mut valid = Vec::with_capacity(draws.len());
-    for d in draws {
-        match d {
-            Some(s) => {
-                wi.extend_from_slice(&s.wi.to_array());
-                pdf.push(s.pdf);
-                valid.push(true);
-            }
-            None => {
-                wi.extend_from_slice(&[0.0; 3]);
-                pdf.push(0.0);
-                valid.push(false);
+/// Draw `n` rows: the columns wi (n×3), pdf and valid, a failed draw
+/// being (0, 0, 0), 0, false as `acdf sample` prints it. Each chunk of rows
+/// is drawn by one `sample_batch` (a single wo) or `sample_each` call, the
+/// chunks on rayon's pool for a large batch.
+fn draw(
+    sampler: &AnySampler,
+    wo: &Rows<Vec3>,
+    u: &Rows<Vec2>,
+    n: usize,
+) -> (Vec<f32>, Vec<f32>, Vec<bool>) {
+    let mut wi = vec![0.0f32; 3 * n];
+    let mut pdf = vec![0.0f32; n];
+    let mut valid = vec![false; n];
+    let work = |start: usize, wi: &mut [f32], pdf: &mut [f32], valid: &mut [bool]| {
+        let len = pdf.len();
+        let mut out: Vec<Option<BxdfSample>> = vec![None; len];
+        let us = u.chunk(start, len);
+        match wo {
+            Rows::One(w) => sampler.sample_batch(*w, &us, &mut out),
+            Rows::Many(_) => sampler.sample_each(&wo.chunk(start, len), &us, &mut out),
+        }
+        for (k, d) in out.iter().enumerate() {
+            if let Some(s) = d {
+                wi[3 * k..3 * k + 3].copy_from_slice(&s.wi.to_array());
+                pdf[k] = s.pdf;
+                valid[k] = true;
             }
         }
+    };
+    if n < PARALLEL_MIN {
+        work(0, &mut wi, &mut pdf, &mut valid);
+    } else {
+        wi.par_chunks_mut(3 * CHUNK)
+            .zip(pdf.par_chunks_mut(CHUNK))
+            .zip(valid.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, ((wi, pdf), valid))| work(c * CHUNK, wi, pdf, valid));
     }
     (wi, pdf, valid)
-}
-
-fn vec3s(rows: &Rows<3>, start: usize, n: usize) -> Vec<Vec3> {
-    (start..start + n)
-        .map(|k| Vec3::from(rows.get(k)))
-        .collect()
-}
-
-fn vec2s(rows: &Rows<2>, start: usize, n: usize) -> Vec<Vec2> {
-    (start..start + n)
-        .map(|k| Vec2::from(rows.get(k)))
-        .collect()
 }
 
 #[pymethods]
@@ -283,23 +290,13 @@ impl Sampler {
         wo: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyTuple>> {
-        let mut wo = read::<3>(wo, "wo")?;
-        let u = read::<2>(u, "u")?;
+        let mut wo = read::<Vec3>(wo, "wo")?;
+        let u = read::<Vec2>(u, "u")?;
         let n = common_len(py, &[("wo", wo.len()), ("u", u.len())])?;
         let sampler = self.sampler.clone();
         let (wi, pdf, valid) = py.detach(move || {
             wo.map_in_place(unit);
-            let mut out = vec![None; n.unwrap_or(1)];
-            chunked(&mut out, |start, chunk| {
-                let us = vec2s(&u, start, chunk.len());
-                match &wo {
-                    Rows::One(w) => sampler.sample_batch(Vec3::from(*w), &us, chunk),
-                    Rows::Many(_) => {
-                        sampler.sample_each(&vec3s(&wo, start, chunk.len()), &us, chunk)
-                    }
-                }
-            });
-            split(&out)
+            draw(&sampler, &wo, &u, n.unwrap_or(1))
         });
         match n {
             None => (PyArray1::from_vec(py, wi), pdf[0], valid[0]).into_pyobject(py),
@@ -327,8 +324,8 @@ impl Sampler {
         wo: &Bound<'py, PyAny>,
         wi: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut wo = read::<3>(wo, "wo")?;
-        let mut wi = read::<3>(wi, "wi")?;
+        let mut wo = read::<Vec3>(wo, "wo")?;
+        let mut wi = read::<Vec3>(wi, "wi")?;
         let n = common_len(py, &[("wo", wo.len()), ("wi", wi.len())])?;
         let sampler = self.sampler.clone();
         let out = py.detach(move || {
@@ -336,10 +333,10 @@ impl Sampler {
             wi.map_in_place(unit);
             let mut out = vec![0.0f32; n.unwrap_or(1)];
             chunked(&mut out, |start, chunk| {
-                let wis = vec3s(&wi, start, chunk.len());
+                let wis = wi.chunk(start, chunk.len());
                 match &wo {
-                    Rows::One(w) => sampler.pdf_batch(Vec3::from(*w), &wis, chunk),
-                    Rows::Many(_) => sampler.pdf_each(&vec3s(&wo, start, chunk.len()), &wis, chunk),
+                    Rows::One(w) => sampler.pdf_batch(*w, &wis, chunk),
+                    Rows::Many(_) => sampler.pdf_each(&wo.chunk(start, chunk.len()), &wis, chunk),
                 }
             });
             out
