@@ -137,10 +137,11 @@ fn rows_of<E: Element + Copy, T: Row>(
     };
     match view.shape() {
         [n] if *n == k => Ok(Rows::One(row(&mut view.iter()))),
-        [_, n] if *n == k => Ok(Rows::Many(match readonly.as_slice() {
-            // C-contiguous: read the buffer directly.
-            Ok(flat) => flat.chunks_exact(k).map(|c| row(&mut c.iter())).collect(),
-            Err(_) => view
+        // In C order (NumPy's `as_slice` would also take a Fortran-ordered
+        // buffer, whose rows are not contiguous): read the buffer directly.
+        [_, n] if *n == k => Ok(Rows::Many(match view.as_slice() {
+            Some(flat) => flat.chunks_exact(k).map(|c| row(&mut c.iter())).collect(),
+            None => view
                 .axis_iter(Axis(0))
                 .map(|r| row(&mut r.iter()))
                 .collect(),

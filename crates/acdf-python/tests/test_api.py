@@ -107,10 +107,15 @@ def test_float32_and_float64_and_lists_agree(chi2: acdf.Sampler) -> None:
     for x, y, z in zip(a, b, c):
         np.testing.assert_array_equal(x, y)
         np.testing.assert_array_equal(x, z)
-    # Non-contiguous views are read as they are.
+    # Strided views and Fortran order (a transposed array, as Mitsuba's
+    # arrays arrive) are read as they are.
     big = np.zeros((50, 6), np.float32)
     big[:, ::2] = wo
     np.testing.assert_array_equal(chi2.pdf(big[:, ::2], a[0]), chi2.pdf(wo, a[0]))
+    np.testing.assert_array_equal(chi2.pdf(np.asfortranarray(wo), a[0]), chi2.pdf(wo, a[0]))
+    np.testing.assert_array_equal(chi2.pdf(np.ascontiguousarray(wo.T).T, a[0]), chi2.pdf(wo, a[0]))
+    for x, y in zip(chi2.sample(wo, np.asfortranarray(u)), a):
+        np.testing.assert_array_equal(x, y)
 
 
 def test_broadcast_and_single_rows(chi2: acdf.Sampler) -> None:

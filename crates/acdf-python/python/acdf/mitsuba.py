@@ -127,8 +127,12 @@ def register(name: str = "acdf", jit_flags: bool = True) -> None:
             np.ascontiguousarray(a[:, 2]),
         )
 
+    float_type: Any = mi.Float
+
     def scalar(a: Any) -> Any:
-        return mi.Float(float(a)) if np.ndim(a) == 0 else mi.Float(np.ascontiguousarray(a))
+        if np.ndim(a) == 0:
+            return float_type(float(a))
+        return float_type(np.ascontiguousarray(a))
 
     class AcdfBSDF(mi.BSDF):
         """f_r of an acdf material, sampled by an acdf sampler."""
