@@ -186,7 +186,7 @@ pub fn sweep<'py>(
     };
     if let Some(t) = tolerances
         .as_ref()
-        .and_then(|t| t.iter().find(|t| !(**t >= 0.0)))
+        .and_then(|t| t.iter().find(|t| t.is_nan() || **t < 0.0))
     {
         return Err(raise(
             py,

@@ -8,8 +8,8 @@
 //! the Mitsuba 3 plug-in, the type stubs) wraps this module.
 //!
 //! Batches run with the interpreter released (`Python::detach`) and, above
-//! [`arrays::PARALLEL_MIN`] rows, on rayon's pool. Every failure is a Python
-//! exception of the `acdf.Error` hierarchy ([`errors`]) carrying the typed
+//! `PARALLEL_MIN` (8192) rows, on rayon's pool. Every failure is a Python
+//! exception of the `acdf.Error` hierarchy (module `errors`) carrying the typed
 //! error's message.
 //!
 //! maturin builds it (`pip install .` at the repository root, which reads
