@@ -324,3 +324,20 @@ def test_rgl_material_and_sampler(rgl_path) -> None:
     wi, pdf, valid = s.sample(wo, acdf.uniform_2d(1000, seed=14))
     assert valid.mean() > 0.9
     np.testing.assert_allclose(s.pdf(wo[valid], wi[valid]), pdf[valid], rtol=1e-3)
+
+
+def test_nbrdf_material(tmp_path) -> None:
+    from conftest import shared_data
+
+    data = shared_data()
+    weights = data / "merl-neural-brdf" / "merl_nbrdf_weights.f32" if data else None
+    if weights is None or not weights.is_file():
+        pytest.skip("skipping: no Neural-BRDF weights (../shared/data/merl-neural-brdf absent)")
+    m = acdf.Material.load("nbrdf:nickel", nbrdf_weights=weights)
+    assert m.name == "nickel"
+    f = m.eval(acdf.direction(30, 45), acdf.direction(30, 225))
+    assert np.all(f > 0) and np.all(np.isfinite(f))
+    with pytest.raises(acdf.UnknownNameError):
+        acdf.Material.load("nbrdf:unobtainium", nbrdf_weights=weights)
+    with pytest.raises(acdf.NotFoundError):
+        acdf.Material.load("nbrdf:nickel", nbrdf_weights=tmp_path / "none.f32")
