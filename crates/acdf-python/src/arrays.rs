@@ -194,6 +194,25 @@ pub fn common_len(py: Python<'_>, lens: &[(&str, Option<usize>)]) -> PyResult<Op
     Ok(found.map(|(_, n)| n))
 }
 
+/// The two directions of `eval` and `pdf`, read and checked: (wo, wi, N).
+pub fn direction_pair(
+    wo: &Bound<'_, PyAny>,
+    wi: &Bound<'_, PyAny>,
+) -> PyResult<(Rows<Vec3>, Rows<Vec3>, Option<usize>)> {
+    let py = wo.py();
+    let (wo, wi) = (read::<Vec3>(wo, "wo")?, read::<Vec3>(wi, "wi")?);
+    let n = common_len(py, &[("wo", wo.len()), ("wi", wi.len())])?;
+    Ok((wo, wi, n))
+}
+
+impl Rows<Vec3> {
+    /// Every direction of unit length ([`unit`]).
+    pub fn normalised(mut self) -> Self {
+        self.map_in_place(unit);
+        self
+    }
+}
+
 /// Unit length as the computations expect it: a vector whose squared length
 /// differs from 1 by more than float32 rounding is normalised (a zero or
 /// non-finite one becomes 0, which every call treats as below the horizon);

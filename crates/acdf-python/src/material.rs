@@ -3,12 +3,12 @@
 use std::path::PathBuf;
 
 use acdf::spec::MaterialSpec;
-use acdf_core::{Brdf, Vec3};
+use acdf_core::Brdf;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
-use crate::arrays::{chunked_by, common_len, read, unit};
+use crate::arrays::{chunked_by, direction_pair};
 use crate::errors::{raise, require_file, IntoPyResult};
 
 /// A measured or analytic BRDF.
@@ -120,13 +120,10 @@ impl Material {
         wo: &Bound<'py, PyAny>,
         wi: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut wo = read::<Vec3>(wo, "wo")?;
-        let mut wi = read::<Vec3>(wi, "wi")?;
-        let n = common_len(py, &[("wo", wo.len()), ("wi", wi.len())])?;
+        let (wo, wi, n) = direction_pair(wo, wi)?;
         let brdf = self.inner.brdf.clone();
         let out = py.detach(move || {
-            wo.map_in_place(unit);
-            wi.map_in_place(unit);
+            let (wo, wi) = (wo.normalised(), wi.normalised());
             let mut out = vec![0.0f32; 3 * n.unwrap_or(1)];
             chunked_by(&mut out, 3, |start, chunk| {
                 let len = chunk.len() / 3;

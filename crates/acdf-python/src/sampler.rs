@@ -15,7 +15,7 @@ use pyo3::types::{PyString, PyTuple};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use crate::arrays::{chunked, common_len, read, unit, Rows, CHUNK, PARALLEL_MIN};
+use crate::arrays::{chunked, common_len, direction_pair, read, Rows, CHUNK, PARALLEL_MIN};
 use crate::errors::{raise, require_file, IntoPyResult};
 use crate::material::Material;
 
@@ -290,14 +290,11 @@ impl Sampler {
         wo: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyTuple>> {
-        let mut wo = read::<Vec3>(wo, "wo")?;
-        let u = read::<Vec2>(u, "u")?;
+        let (wo, u) = (read::<Vec3>(wo, "wo")?, read::<Vec2>(u, "u")?);
         let n = common_len(py, &[("wo", wo.len()), ("u", u.len())])?;
         let sampler = self.sampler.clone();
-        let (wi, pdf, valid) = py.detach(move || {
-            wo.map_in_place(unit);
-            draw(&sampler, &wo, &u, n.unwrap_or(1))
-        });
+        let (wi, pdf, valid) =
+            py.detach(move || draw(&sampler, &wo.normalised(), &u, n.unwrap_or(1)));
         match n {
             None => (PyArray1::from_vec(py, wi), pdf[0], valid[0]).into_pyobject(py),
             Some(n) => {
@@ -324,13 +321,10 @@ impl Sampler {
         wo: &Bound<'py, PyAny>,
         wi: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut wo = read::<Vec3>(wo, "wo")?;
-        let mut wi = read::<Vec3>(wi, "wi")?;
-        let n = common_len(py, &[("wo", wo.len()), ("wi", wi.len())])?;
+        let (wo, wi, n) = direction_pair(wo, wi)?;
         let sampler = self.sampler.clone();
         let out = py.detach(move || {
-            wo.map_in_place(unit);
-            wi.map_in_place(unit);
+            let (wo, wi) = (wo.normalised(), wi.normalised());
             let mut out = vec![0.0f32; n.unwrap_or(1)];
             chunked(&mut out, |start, chunk| {
                 let wis = wi.chunk(start, chunk.len());

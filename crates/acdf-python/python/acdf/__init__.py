@@ -32,19 +32,8 @@ from ._acdf import (
     sweep,
     uniform_2d,
 )
-from .errors import (
-    DTypeError,
-    Error,
-    IncompatibleError,
-    InvalidArgumentError,
-    IoError,
-    MaterialError,
-    NotAvailableError,
-    NotFoundError,
-    SamplerFileError,
-    ShapeError,
-    UnknownNameError,
-)
+from . import errors
+from .errors import *  # noqa: F403 (the exception classes)
 
 __all__ = [
     "BUILTIN_MATERIALS",
@@ -58,18 +47,8 @@ __all__ = [
     "report",
     "sweep",
     "uniform_2d",
-    "Error",
-    "NotFoundError",
-    "IoError",
-    "UnknownNameError",
-    "MaterialError",
-    "IncompatibleError",
-    "InvalidArgumentError",
-    "ShapeError",
-    "DTypeError",
-    "SamplerFileError",
-    "NotAvailableError",
     "__version__",
+    *errors.__all__,
 ]
 
 
@@ -83,7 +62,7 @@ class EnvironmentSampler:
     """
 
     def __init__(self, *args: object, **kwargs: object) -> None:
-        raise NotAvailableError(
+        raise errors.NotAvailableError(
             "environment-map samplers are not available in this build of acdf"
         )
 

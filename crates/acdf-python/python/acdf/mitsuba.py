@@ -109,23 +109,17 @@ def register(name: str = "acdf", jit_flags: bool = True) -> None:
 
     flags = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
 
-    def vector3(a: np.ndarray) -> Any:
+    def triple(kind: Any, a: np.ndarray) -> Any:
+        """Rows of three (a (3,) or (N, 3) array) as a Mitsuba `kind`."""
         if a.ndim == 1:
-            return mi.Vector3f(float(a[0]), float(a[1]), float(a[2]))
-        return mi.Vector3f(
-            np.ascontiguousarray(a[:, 0]),
-            np.ascontiguousarray(a[:, 1]),
-            np.ascontiguousarray(a[:, 2]),
-        )
+            return kind(float(a[0]), float(a[1]), float(a[2]))
+        return kind(*(np.ascontiguousarray(a[:, c]) for c in range(3)))
+
+    def vector3(a: np.ndarray) -> Any:
+        return triple(mi.Vector3f, a)
 
     def color(a: np.ndarray) -> Any:
-        if a.ndim == 1:
-            return mi.Color3f(float(a[0]), float(a[1]), float(a[2]))
-        return mi.Color3f(
-            np.ascontiguousarray(a[:, 0]),
-            np.ascontiguousarray(a[:, 1]),
-            np.ascontiguousarray(a[:, 2]),
-        )
+        return triple(mi.Color3f, a)
 
     float_type: Any = mi.Float
 
