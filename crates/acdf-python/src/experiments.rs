@@ -1,0 +1,217 @@
+//! `acdf.report` and `acdf.sweep`: the command's results table and tolerance
+//! sweep as lists of dicts, one per row, with the keys of their JSON output
+//! (`acdf report --json`, `acdf sweep`'s `sweep.json`).
+
+use acdf::env::Sky;
+use acdf::registry::report_samplers;
+use acdf::report::report_material;
+use acdf::spec::DEFAULT_REPORT_MATERIALS;
+use acdf::sweep::{default_tolerance, run_sweep, TOLERANCE_FACTORS};
+use acdf::{EfficiencyConfig, SamplerOptions, SamplerSpec, SimplifierName};
+use pyo3::prelude::*;
+
+use crate::errors::{raise, IntoPyResult};
+use crate::material::Material;
+use crate::sampler::parse_resolution;
+
+/// Rows serialised as the command's JSON, then read by Python's `json`
+/// module: a list of dicts whose keys keep the order of the JSON output.
+fn rows<'py, T: serde::Serialize>(py: Python<'py>, rows: &[T]) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(rows).map_err(|e| raise(py, "Error", e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// A material argument: an `acdf.Material` or a spec string.
+fn material_of(py: Python<'_>, m: &Bound<'_, PyAny>) -> PyResult<acdf::Material> {
+    if let Ok(material) = m.cast::<Material>() {
+        return Ok(material.get().inner.clone());
+    }
+    let spec: String = m.extract().map_err(|_| {
+        raise(
+            py,
+            "InvalidArgumentError",
+            format!("invalid material `{m}`: expected an acdf.Material or a spec string"),
+        )
+    })?;
+    Ok(Material::load_spec(py, &spec, None)?.inner)
+}
+
+/// The measurement settings: the library's defaults (those of `acdf
+/// report`) where an argument is None.
+fn config(
+    py: Python<'_>,
+    samples: Option<usize>,
+    timing_samples: Option<usize>,
+    timing_passes: Option<usize>,
+    seed: Option<u64>,
+) -> PyResult<EfficiencyConfig> {
+    let d = EfficiencyConfig::default();
+    let config = EfficiencyConfig {
+        samples_per_direction: samples.unwrap_or(d.samples_per_direction),
+        timing_samples_per_direction: timing_samples.unwrap_or(d.timing_samples_per_direction),
+        timing_passes: timing_passes.unwrap_or(d.timing_passes),
+        seed: seed.unwrap_or(d.seed),
+        ..d
+    };
+    if config.samples_per_direction < 2
+        || config.timing_samples_per_direction < 1
+        || config.timing_passes < 1
+    {
+        return Err(raise(
+            py,
+            "InvalidArgumentError",
+            "invalid sample count: need at least 2 draws for a variance, 1 to time and 1 timed pass",
+        ));
+    }
+    Ok(config)
+}
+
+fn table_options(
+    resolution: Option<&Bound<'_, PyAny>>,
+    tolerance: Option<f64>,
+    cosine_mix: f32,
+) -> PyResult<SamplerOptions> {
+    Ok(SamplerOptions {
+        resolution: match resolution {
+            Some(r) => parse_resolution(r)?,
+            None => SamplerOptions::default().resolution,
+        },
+        tolerance,
+        cosine_mix,
+    })
+}
+
+/// The results table of `acdf report`, as a list of dicts (one per
+/// material and sampler, with the keys of `acdf report --json`).
+///
+/// `materials` are `acdf.Material` objects or spec strings (default: the
+/// three built-in stand-ins of `acdf report`); `samplers` are names of
+/// `acdf.SAMPLER_NAMES` (default: the report's set for each material). The
+/// measurement settings default to the command's (12 outgoing directions ×
+/// 2^17 draws, seed 2005, the fastest of 3 timed passes). Runs with the
+/// interpreter released; the time columns depend on the machine's load.
+#[pyfunction]
+#[pyo3(signature = (materials = None, samplers = None, *, resolution = None, tolerance = None, cosine_mix = 0.0, samples = None, timing_samples = None, timing_passes = None, seed = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn report<'py>(
+    py: Python<'py>,
+    materials: Option<Vec<Bound<'py, PyAny>>>,
+    samplers: Option<Vec<String>>,
+    resolution: Option<&Bound<'py, PyAny>>,
+    tolerance: Option<f64>,
+    cosine_mix: f32,
+    samples: Option<usize>,
+    timing_samples: Option<usize>,
+    timing_passes: Option<usize>,
+    seed: Option<u64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let options = table_options(resolution, tolerance, cosine_mix)?;
+    let config = config(py, samples, timing_samples, timing_passes, seed)?;
+    let loaded: Vec<acdf::Material> = match materials {
+        Some(list) => list
+            .iter()
+            .map(|m| material_of(py, m))
+            .collect::<PyResult<_>>()?,
+        None => DEFAULT_REPORT_MATERIALS
+            .iter()
+            .map(|n| Ok(Material::load_spec(py, &format!("builtin:{n}"), None)?.inner))
+            .collect::<PyResult<_>>()?,
+    };
+    let chosen: Option<Vec<SamplerSpec>> = samplers
+        .map(|names| {
+            names
+                .iter()
+                .map(|s| s.parse::<SamplerSpec>())
+                .collect::<acdf::Result<_>>()
+        })
+        .transpose()
+        .py_err(py)?;
+    let measured = py
+        .detach(move || {
+            let env = Sky::dome();
+            let mut out = Vec::new();
+            for m in &loaded {
+                let specs = chosen.clone().unwrap_or_else(|| report_samplers(m));
+                out.extend(report_material(m, &specs, &env, &options, &config, |_| {})?);
+            }
+            Ok::<_, acdf::Error>(out)
+        })
+        .py_err(py)?;
+    rows(py, &measured)
+}
+
+/// The tolerance sweep of `acdf sweep`, as a list of dicts (the uniform and
+/// cosine references, then each simplifier at each tolerance, with the
+/// keys of `sweep.json`).
+///
+/// `material` is an `acdf.Material` or a spec string; `simplifiers` names
+/// of `acdf.SIMPLIFIER_NAMES` (default: those `acdf report` compares);
+/// `tolerances` the tolerances of every simplifier (default: each
+/// simplifier's own default × 1/16, 1/8, ..., 8). Measurement settings as
+/// for `report`.
+#[pyfunction]
+#[pyo3(signature = (material, simplifiers = None, tolerances = None, *, resolution = None, samples = None, timing_samples = None, timing_passes = None, seed = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn sweep<'py>(
+    py: Python<'py>,
+    material: &Bound<'py, PyAny>,
+    simplifiers: Option<Vec<String>>,
+    tolerances: Option<Vec<f64>>,
+    resolution: Option<&Bound<'py, PyAny>>,
+    samples: Option<usize>,
+    timing_samples: Option<usize>,
+    timing_passes: Option<usize>,
+    seed: Option<u64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let options = table_options(resolution, None, 0.0)?;
+    let config = config(py, samples, timing_samples, timing_passes, seed)?;
+    let m = material_of(py, material)?;
+    let simplifiers: Vec<SimplifierName> = match simplifiers {
+        None => SimplifierName::in_report().collect(),
+        Some(names) => names
+            .iter()
+            .map(|n| {
+                SimplifierName::find(n).ok_or_else(|| {
+                    raise(
+                        py,
+                        "UnknownNameError",
+                        format!(
+                            "unknown simplifier `{n}`: expected one of {}",
+                            SimplifierName::list()
+                        ),
+                    )
+                })
+            })
+            .collect::<PyResult<_>>()?,
+    };
+    if let Some(t) = tolerances
+        .as_ref()
+        .and_then(|t| t.iter().find(|t| t.is_nan() || **t < 0.0))
+    {
+        return Err(raise(
+            py,
+            "InvalidArgumentError",
+            format!("invalid tolerance `{t}`: must be a non-negative number"),
+        ));
+    }
+    let points = py
+        .detach(move || {
+            run_sweep(
+                &m,
+                &Sky::dome(),
+                &options,
+                &simplifiers,
+                |s| match &tolerances {
+                    Some(t) => Ok(t.clone()),
+                    None => {
+                        let d = default_tolerance(s);
+                        Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
+                    }
+                },
+                &config,
+                |_| {},
+            )
+        })
+        .py_err(py)?;
+    rows(py, &points)
+}

@@ -1,0 +1,50 @@
+"""Shared fixtures of the Python package's tests: where the repository, the
+shared data and the `acdf` command are. Tests that need what is absent skip
+with the reason."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def shared_data() -> Path | None:
+    """`$ACDF_SHARED_DATA`, else `../shared/data` beside the repository."""
+    env = os.environ.get("ACDF_SHARED_DATA")
+    candidates = [Path(env)] if env else []
+    candidates.append(REPO.parent / "shared" / "data")
+    return next((p for p in candidates if p.is_dir()), None)
+
+
+def rgl_file(name: str = "ilm_solo_m_68_rgb.bsdf") -> Path | None:
+    data = shared_data()
+    path = data / "rgl-material-database" / name if data else None
+    return path if path is not None and path.is_file() else None
+
+
+@pytest.fixture(scope="session")
+def rgl_path() -> Path:
+    path = rgl_file()
+    if path is None:
+        pytest.skip("skipping: no RGL material (../shared/data/rgl-material-database absent)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def acdf_bin() -> Path:
+    """The `acdf` command: `$ACDF_BIN`, else target/release/acdf, else on PATH."""
+    env = os.environ.get("ACDF_BIN")
+    candidates = [Path(env)] if env else []
+    candidates.append(REPO / "target" / "release" / "acdf")
+    which = shutil.which("acdf")
+    if which:
+        candidates.append(Path(which))
+    for c in candidates:
+        if c.is_file() and os.access(c, os.X_OK):
+            return c
+    pytest.skip("skipping: no acdf command (cargo build --release -p acdf, or set ACDF_BIN)")
