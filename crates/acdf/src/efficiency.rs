@@ -117,6 +117,9 @@ pub struct EfficiencyConfig {
     pub timing_samples_per_direction: usize,
     /// Timed repeats per sampler, the median kept (at least 1).
     pub timing_repeats: usize,
+    /// Whether to time the BRDF evaluation too (reported beside the
+    /// sampler's time, never part of it).
+    pub time_eval: bool,
     /// Seed of the uniform numbers; the same for every sampler (common random
     /// numbers), so differences come from the samplers.
     pub seed: u64,
@@ -134,6 +137,7 @@ impl Default for EfficiencyConfig {
             samples_per_direction: 1 << 17,
             timing_samples_per_direction: 1 << 12,
             timing_repeats: 9,
+            time_eval: true,
             seed: 2005,
         }
     }
@@ -504,7 +508,7 @@ impl<'a> TimingRun<'a> {
     }
 
     /// One timed repeat of the draws, the densities and the evaluations.
-    fn repeat(&mut self, brdf: &dyn Brdf, sampler: &dyn BxdfSampler) {
+    fn repeat(&mut self, brdf: Option<&dyn Brdf>, sampler: &dyn BxdfSampler) {
         let first = self.draw_seconds.is_empty();
         let start = thread_seconds();
         for (j, &wo) in self.outgoing.iter().enumerate() {
@@ -529,6 +533,7 @@ impl<'a> TimingRun<'a> {
         }
         self.pdf_seconds.push(thread_seconds() - start);
 
+        let Some(brdf) = brdf else { return };
         let start = thread_seconds();
         for (j, &wo) in self.outgoing.iter().enumerate() {
             for &wi in &self.drawn[j] {
@@ -580,6 +585,7 @@ pub fn time_samplers(
     samplers: &[&dyn BxdfSampler],
     config: &EfficiencyConfig,
 ) -> Vec<Timing> {
+    let brdf = config.time_eval.then_some(brdf);
     let mut runs: Vec<TimingRun> = samplers
         .iter()
         .map(|_| {
