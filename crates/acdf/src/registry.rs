@@ -476,6 +476,18 @@ impl Tabulation {
         }
     }
 
+    /// No tables: every sampler made from it is built as usual.
+    pub fn empty() -> Tabulation {
+        Tabulation {
+            resolution: Resolution {
+                theta_o: 0,
+                ..Resolution::ISOTROPIC
+            },
+            slices: Vec::new(),
+            seconds: 0.0,
+        }
+    }
+
     /// The resolution tabulated.
     pub fn resolution(&self) -> Resolution {
         self.resolution

@@ -183,7 +183,14 @@ pub fn report_material(
     };
     let is_reference =
         |e: &Entry| e.spec == plan.reference.sampler && e.options == reference_options;
-    let tables = Tabulation::new(material, plan.options.resolution);
+    // One tabulation for every sampler with tables at the plan's
+    // resolution; none when no sampler has tables.
+    let tabulated = plan.samplers.iter().any(|s| s.family().file_kind.is_some());
+    let tables = if tabulated {
+        Tabulation::new(material, plan.options.resolution)
+    } else {
+        Tabulation::empty()
+    };
     let mut entries: Vec<Entry> = Vec::new();
     for &spec in plan.samplers {
         progress(Progress::Step(spec.to_string()));
