@@ -36,7 +36,7 @@ use crate::material::Material;
 use crate::plot::{figure_bytes, Figure, Marker, Panel, Series, Style};
 use crate::registry::{make_sampler_tabulated, AnySampler, SamplerOps, SamplerOptions, Tabulation};
 use crate::spec::{SamplerAt, SamplerSpec, SimplifierName};
-use crate::target::{relative, search_tolerance, Candidate, Reference};
+use crate::target::{relative, search_tolerance, Reference, TargetOutcome};
 
 /// What the survey measures with.
 #[derive(Debug, Clone)]
@@ -83,6 +83,9 @@ pub struct SurveyRow {
     pub build_seconds: f64,
     /// For the target row: whether some tolerance met the target.
     pub target_reached: Option<bool>,
+    /// For the target row: the search, every tolerance it tried.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub search: Option<TargetOutcome>,
 }
 
 /// The label of the row of `adaptive:chi2` at the target.
@@ -111,8 +114,8 @@ struct Entry {
     sampler: AnySampler,
     tolerance: Option<f64>,
     build_seconds: f64,
-    /// For the target row, the search's chosen candidate.
-    target: Option<Candidate>,
+    /// For the target row, the search.
+    target: Option<TargetOutcome>,
     target_reached: Option<bool>,
 }
 
@@ -221,8 +224,8 @@ pub fn survey_material(
         sampler,
         tolerance: Some(outcome.chosen.tolerance),
         build_seconds: outcome.chosen.build_seconds,
-        target: Some(outcome.chosen.clone()),
         target_reached: Some(outcome.reached),
+        target: Some(outcome),
     });
     progress("cosine");
     entries.push(build(
@@ -258,7 +261,7 @@ pub fn survey_material(
             // (paired with the reference's), so that it meets the target
             // exactly when the search says it does.
             let (t, t_ref) = match &e.target {
-                Some(c) => (c.sampler_seconds, c.reference_seconds),
+                Some(o) => (o.chosen.sampler_seconds, o.chosen.reference_seconds),
                 None => (
                     m.timing.sampler_seconds(),
                     reference.timing.sampler_seconds(),
@@ -286,6 +289,7 @@ pub fn survey_material(
                 missed_share: m.noise_free.missed_share,
                 build_seconds: e.build_seconds,
                 target_reached: e.target_reached,
+                search: e.target.clone(),
             }
         })
         .collect())
@@ -518,6 +522,7 @@ mod tests {
             missed_share: 0.0,
             build_seconds: 0.1,
             target_reached: None,
+            search: None,
         }
     }
 

@@ -167,10 +167,13 @@ pub fn search_tolerance(
         Ok((met, storage))
     };
 
+    // A start beyond the stepping's reach from the default is brought
+    // back to it.
+    let default = default_tolerance(simplifier);
     let start = base
         .tolerance
         .filter(|t| t.is_finite() && *t > 0.0)
-        .unwrap_or_else(|| default_tolerance(simplifier));
+        .map_or(default, |t| t.min(default * STEP.powi(STEPS_UP as i32)));
     // (tolerance that meets the target, tolerance that does not).
     let (mut good, mut bad): (Option<f64>, Option<f64>) = (None, None);
     let (met, mut storage) = try_tolerance(start)?;
@@ -225,10 +228,13 @@ pub fn search_tolerance(
             .iter()
             .enumerate()
             .filter(|(_, (c, _))| meets(c))
+            // Of equal storage, the smallest tolerance: beyond the point
+            // where every curve keeps only its two ends, a larger
+            // tolerance changes nothing.
             .min_by(|(_, (a, _)), (_, (b, _))| {
                 a.storage_bytes
                     .cmp(&b.storage_bytes)
-                    .then(b.tolerance.total_cmp(&a.tolerance))
+                    .then(a.tolerance.total_cmp(&b.tolerance))
             })
             .map(|(k, _)| k)
     } else {
