@@ -3,7 +3,10 @@
 //! `Distribution2D`), for BRDF samplers (`BxdfSampler`) and BRDF sources
 //! (`Brdf`); the geometry of the local shading frame, spherical and
 //! Rusinkiewicz half/difference coordinates; the warps shared by several
-//! samplers; the hot-path helpers every sampler uses (polynomial
+//! samplers; the deterministic quadrature over the incident hemisphere
+//! that measures a sampler without drawing from it (`quadrature`: the
+//! light it misses, the relative variance of its estimator, its largest
+//! weight); the hot-path helpers every sampler uses (polynomial
 //! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
 //! their SIMD-lane form for batches in `search::lanes`), with the one place
 //! that detects the CPU features they choose their code by (`cpu`);

@@ -17,14 +17,15 @@
 //! of outgoing directions, of the uniform sampler divided by that of the
 //! adaptive one (> 1: the adaptive sampler is better). The variances are
 //! computed by quadrature over a fine half-vector grid, not by sampling, so
-//! they carry no Monte Carlo noise; "missed" is the largest fraction of the
-//! integrand where a sampler's pdf is 0 (bias; it should be 0).
+//! they carry no Monte Carlo noise (the quadrature of `acdf report`,
+//! [`acdf_core::Integrand`], without the environment); "missed" is the
+//! largest fraction of the integrand where a sampler's pdf is 0 (bias; it
+//! should be 0).
 
 use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
-use acdf_core::geometry::reflect;
 use acdf_core::geometry::spherical_direction;
-use acdf_core::{Brdf, BxdfSampler, Distribution2D, Vec2, Vec3};
-use acdf_tabulated::tabulate::{half_jacobian, incident_density, tabulate_slice, theta_h_of};
+use acdf_core::{Brdf, BxdfSampler, Distribution2D, HemisphereGrid, Integrand, Vec2, Vec3};
+use acdf_tabulated::tabulate::tabulate_slice;
 use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
 use acdf_uniform::PiecewiseConstantBuilder;
 use rand::{Rng, SeedableRng};
@@ -99,64 +100,18 @@ fn directions(count: usize) -> Vec<Vec3> {
         .collect()
 }
 
-/// The quadrature points of one outgoing direction: incident directions and
-/// their weights g(x, v) dx dv, where g = Y(f) cos θ_i 4 (wo·h) J(v) is the
-/// density of Y(f) cos θ_i over the half-vector square (x → φ_h, v → θ_h as
-/// the uniform plug-in's tabulation spaces them).
-struct Quadrature {
-    wo: Vec3,
-    points: Vec<(Vec3, f64)>,
-}
-
-fn quadrature(brdf: &dyn Brdf, wo: Vec3, nx: usize, nv: usize) -> Quadrature {
-    let mut points = Vec::new();
-    let area = 1.0 / (nx * nv) as f64;
-    for iv in 0..nv {
-        let v = (iv as f32 + 0.5) / nv as f32;
-        let (sin_h, cos_h) = theta_h_of(v).sin_cos();
-        let jacobian = half_jacobian(v, sin_h);
-        for ix in 0..nx {
-            let (sin_p, cos_p) = (std::f32::consts::TAU * (ix as f32 + 0.5) / nx as f32).sin_cos();
-            let h = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
-            let g = incident_density(brdf, wo, h) * jacobian;
-            if g > 0.0 {
-                points.push((reflect(wo, h), g as f64 * area));
-            }
-        }
-    }
-    Quadrature { wo, points }
-}
-
 /// Per direction: the relative variance Var / F^2 of the estimator
-/// Y(f) cos θ_i / pdf, by quadrature: F = ∫ g, second moment = ∫ g²/p_xv =
-/// ∫ g · (Y(f) cos θ_i / pdf(wi)) (the Jacobians of p_xv and g cancel); and
-/// the mass of g where the pdf is 0 (bias), relative to F.
-fn relative_variances(
-    sampler: &dyn BxdfSampler,
-    brdf: &dyn Brdf,
-    qs: &[Quadrature],
-) -> (Vec<f64>, f64) {
+/// Y(f) cos θ_i / pdf by quadrature ([`acdf_core::Integrand`] on the
+/// half-vector grid, no light), and the largest share of Y(f) cos θ_i
+/// where the pdf is 0 (bias; it should be 0).
+fn relative_variances(sampler: &dyn BxdfSampler, qs: &[Integrand]) -> (Vec<f64>, f64) {
     let mut missed = 0.0f64;
     let rel = qs
         .iter()
         .map(|q| {
-            let (mut f, mut m2, mut lost) = (0.0f64, 0.0f64, 0.0f64);
-            for &(wi, w) in &q.points {
-                f += w;
-                let pdf = sampler.pdf(q.wo, wi);
-                if pdf > 0.0 {
-                    let ratio = (brdf.luminance(q.wo, wi) * wi.z / pdf) as f64;
-                    m2 += w * ratio;
-                } else {
-                    lost += w;
-                }
-            }
-            missed = missed.max(lost / f.max(f64::MIN_POSITIVE));
-            if f > 0.0 {
-                (m2 / (f * f) - 1.0).max(0.0)
-            } else {
-                0.0
-            }
+            let m = q.moments(sampler);
+            missed = missed.max(m.missed_share());
+            m.relative_variance()
         })
         .collect();
     (rel, missed)
@@ -235,11 +190,15 @@ fn main() {
         uniform.build_all().expect("uniform build");
         let build_u = t.elapsed().as_secs_f64();
         let uniform_bytes = uniform.storage_bytes();
-        let qs: Vec<Quadrature> = wos
+        let grid = HemisphereGrid::HalfVector {
+            n_v: o.quad_v,
+            n_x: o.quad_x,
+        };
+        let qs: Vec<Integrand> = wos
             .iter()
-            .map(|&wo| quadrature(&*brdf, wo, o.quad_x, o.quad_v))
+            .map(|&wo| Integrand::new(&*brdf, wo, grid, None))
             .collect();
-        let (var_u, missed_u) = relative_variances(&uniform, &*brdf, &qs);
+        let (var_u, missed_u) = relative_variances(&uniform, &qs);
         let mean_u = var_u.iter().sum::<f64>() / var_u.len() as f64;
         println!(
             "| {material} | uniform | - | {uniform_bytes} | 1 | {} x {} | 1 (relvar {mean_u:.3e}, missed {missed_u:.1e}) | {build_u:.1} |",
@@ -265,7 +224,7 @@ fn main() {
                 let build = t.elapsed().as_secs_f64();
                 let bytes = sampler.storage_bytes();
                 let (rt, rp) = average_resolution(&sampler);
-                let (var_a, missed) = relative_variances(&sampler, &*brdf, &qs);
+                let (var_a, missed) = relative_variances(&sampler, &qs);
                 let mean_a = var_a.iter().sum::<f64>() / var_a.len() as f64;
                 println!(
                     "| {material} | {name} | {tol} | {bytes} | {:.1} | {rt:.1} x {rp:.1} | {:.3} (relvar {mean_a:.3e}, missed {missed:.1e}, table chi2 {:.2e}) | {build:.1} |",

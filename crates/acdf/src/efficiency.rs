@@ -44,8 +44,9 @@
 //! draws per outgoing direction, then `pdf` at the directions drawn, timed
 //! [`timing_repeats`](EfficiencyConfig::timing_repeats) times, the median
 //! kept. Several samplers are timed in turns (one repeat of each per
-//! round), so that a change of the machine's speed during the run (its
-//! clock, other tenants) reaches them all alike. The BRDF evaluation at the
+//! round), and each is compared with the first in the same round (the
+//! median of the per-round ratios, [`time_samplers`]), so that a change of
+//! the machine's speed during the run (its clock, other tenants) cancels. The BRDF evaluation at the
 //! drawn directions, the same work whichever sampler drew them, is timed in
 //! the same rounds and reported beside it (t_eval), but is not part of t_s;
 //! nor is the environment lookup.
@@ -117,6 +118,9 @@ pub struct EfficiencyConfig {
     pub timing_samples_per_direction: usize,
     /// Timed repeats per sampler, the median kept (at least 1).
     pub timing_repeats: usize,
+    /// Whether to time the BRDF evaluation too (reported beside the
+    /// sampler's time, never part of it).
+    pub time_eval: bool,
     /// Seed of the uniform numbers; the same for every sampler (common random
     /// numbers), so differences come from the samplers.
     pub seed: u64,
@@ -134,6 +138,7 @@ impl Default for EfficiencyConfig {
             samples_per_direction: 1 << 17,
             timing_samples_per_direction: 1 << 12,
             timing_repeats: 9,
+            time_eval: true,
             seed: 2005,
         }
     }
@@ -504,7 +509,7 @@ impl<'a> TimingRun<'a> {
     }
 
     /// One timed repeat of the draws, the densities and the evaluations.
-    fn repeat(&mut self, brdf: &dyn Brdf, sampler: &dyn BxdfSampler) {
+    fn repeat(&mut self, brdf: Option<&dyn Brdf>, sampler: &dyn BxdfSampler) {
         let first = self.draw_seconds.is_empty();
         let start = thread_seconds();
         for (j, &wo) in self.outgoing.iter().enumerate() {
@@ -529,6 +534,7 @@ impl<'a> TimingRun<'a> {
         }
         self.pdf_seconds.push(thread_seconds() - start);
 
+        let Some(brdf) = brdf else { return };
         let start = thread_seconds();
         for (j, &wo) in self.outgoing.iter().enumerate() {
             for &wi in &self.drawn[j] {
@@ -536,6 +542,18 @@ impl<'a> TimingRun<'a> {
             }
         }
         self.eval_seconds.push(thread_seconds() - start);
+    }
+
+    /// The sampler's own time per draw in each repeat, t_sample + v t_pdf.
+    fn own_seconds(&self) -> Vec<f64> {
+        let draws = self.draws.max(1) as f64;
+        let valid_calls = self.valid.max(1) as f64;
+        let v = self.valid as f64 / draws;
+        self.draw_seconds
+            .iter()
+            .zip(&self.pdf_seconds)
+            .map(|(d, p)| d / draws + v * p / valid_calls)
+            .collect()
     }
 
     /// The per-call times of the median repeats (zeros before any).
@@ -571,15 +589,21 @@ pub fn median(xs: &[f64]) -> f64 {
 }
 
 /// Time several samplers of `brdf` on this thread, in turns: each round
-/// times one repeat of every sampler, and each keeps the median of
-/// [`timing_repeats`](EfficiencyConfig::timing_repeats) rounds. The first
-/// round also builds any table a sampler builds on first use, so it is
-/// taken once more untimed beforehand.
+/// times one repeat of every sampler, over
+/// [`timing_repeats`](EfficiencyConfig::timing_repeats) rounds after an
+/// untimed one (which also builds any table a sampler builds on first
+/// use). The first sampler keeps the median of its rounds; every other
+/// one the median, over the rounds, of its time divided by the first
+/// sampler's in the same round, times the first sampler's median. A
+/// change of the machine's speed that lasts a few rounds (another
+/// tenant's burst, the clock) then cancels in the ratios instead of
+/// moving one sampler's median and not another's.
 pub fn time_samplers(
     brdf: &dyn Brdf,
     samplers: &[&dyn BxdfSampler],
     config: &EfficiencyConfig,
 ) -> Vec<Timing> {
+    let brdf = config.time_eval.then_some(brdf);
     let mut runs: Vec<TimingRun> = samplers
         .iter()
         .map(|_| {
@@ -603,7 +627,39 @@ pub fn time_samplers(
             run.repeat(brdf, sampler);
         }
     }
-    runs.iter().map(TimingRun::timing).collect()
+    let Some(anchor) = runs.first() else {
+        return Vec::new();
+    };
+    let anchor_rounds = anchor.own_seconds();
+    let anchor_median = median(&anchor_rounds);
+    runs.iter()
+        .enumerate()
+        .map(|(k, run)| {
+            let timing = run.timing();
+            if k == 0 || !(anchor_median > 0.0) {
+                return timing;
+            }
+            let rounds = run.own_seconds();
+            let ratios: Vec<f64> = rounds
+                .iter()
+                .zip(&anchor_rounds)
+                .filter(|(_, a)| **a > 0.0)
+                .map(|(t, a)| t / a)
+                .collect();
+            let own = median(&rounds);
+            if ratios.is_empty() || !(own > 0.0) {
+                return timing;
+            }
+            // Scale the draw and pdf times alike, so that their sum is
+            // the paired estimate.
+            let scale = median(&ratios) * anchor_median / own;
+            Timing {
+                seconds_per_draw: timing.seconds_per_draw * scale,
+                seconds_per_pdf: timing.seconds_per_pdf * scale,
+                ..timing
+            }
+        })
+        .collect()
 }
 
 /// 1 / (r · t_s), infinite when either is 0.

@@ -70,6 +70,16 @@ pub enum Error {
     #[error("stdin line {line}: {reason}")]
     Input { line: usize, reason: String },
 
+    /// No tolerance of the search reaches the target efficiency; `best`
+    /// says what the best candidate reached.
+    #[error("no tolerance of {sampler} reaches {target} x the efficiency of {reference}: {best}")]
+    TargetNotReached {
+        sampler: String,
+        target: f64,
+        reference: String,
+        best: String,
+    },
+
     /// Reading or writing a file.
     #[error("{}: {source}", path.display())]
     Io {

@@ -66,6 +66,7 @@ pub mod registry;
 pub mod render;
 pub mod report;
 pub mod spec;
+pub mod survey;
 pub mod sweep;
 pub mod target;
 

@@ -26,9 +26,10 @@ use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
 use acdf_rgl::RglSampler;
 use acdf_tabulated::persist::{self, PersistError};
-use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
+use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
 use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
 use enum_dispatch::enum_dispatch;
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::material::Material;
@@ -411,6 +412,149 @@ pub fn make_sampler_spec(
     (family.build)(&spec, material, options)
 }
 
+/// The tabulated slices of one material at one resolution, made once and
+/// shared by every uniform and adaptive sampler built from them
+/// ([`make_sampler_tabulated`]): a sweep or a survey builds a dozen
+/// samplers of a material at the same resolution, and tabulating (with
+/// its support pass) is most of what a build costs.
+pub struct Tabulation {
+    resolution: Resolution,
+    slices: Vec<Vec<f32>>,
+    /// Seconds the tabulation took (in parallel).
+    pub seconds: f64,
+}
+
+impl Tabulation {
+    /// Tabulate every slice of `material` at the resolution its tabulated
+    /// samplers use for `requested` ([`effective_resolution`]), in parallel:
+    /// the tables `build_all` would make.
+    pub fn new(material: &Material, requested: Resolution) -> Tabulation {
+        let resolution = effective_resolution(material, requested);
+        let start = std::time::Instant::now();
+        let slices = (0..resolution.slices())
+            .into_par_iter()
+            .map(|index| {
+                let (i, j) = (index / resolution.phi_o, index % resolution.phi_o);
+                tabulate_slice(material.brdf.as_ref(), &resolution, i, j)
+            })
+            .collect();
+        Tabulation {
+            resolution,
+            slices,
+            seconds: start.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// [`new`](Self::new) for an isotropic material with several φ_o
+    /// slices whose count divides the φ_h columns (as at 32x16x256x32):
+    /// the slices of φ_o cell 0 are tabulated, and those of cell j are
+    /// the same tables turned by j × (φ_h columns / φ_o cells) columns.
+    /// For an isotropic material slice j's outgoing directions, its
+    /// support pass included, are those of slice 0 turned by its centre
+    /// φ_o = 2πj / n_φo, and its φ_h axis is absolute, so this is the
+    /// tabulation of every slice up to float rounding, for 1/n_φo of the
+    /// work. Other materials and resolutions are tabulated in full.
+    pub fn by_rotation(material: &Material, requested: Resolution) -> Tabulation {
+        let resolution = effective_resolution(material, requested);
+        let (n_phi_o, n_phi_h) = (resolution.phi_o, resolution.phi_h);
+        if !material.brdf.is_isotropic() || n_phi_o < 2 || n_phi_h % n_phi_o != 0 {
+            return Tabulation::new(material, requested);
+        }
+        let start = std::time::Instant::now();
+        let base: Vec<Vec<f32>> = (0..resolution.theta_o)
+            .into_par_iter()
+            .map(|i| tabulate_slice(material.brdf.as_ref(), &resolution, i, 0))
+            .collect();
+        let step = n_phi_h / n_phi_o;
+        let mut slices = Vec::with_capacity(resolution.slices());
+        for table in &base {
+            for j in 0..n_phi_o {
+                let shift = j * step;
+                let mut turned = vec![0.0f32; table.len()];
+                for (row_out, row_in) in turned
+                    .chunks_exact_mut(n_phi_h)
+                    .zip(table.chunks_exact(n_phi_h))
+                {
+                    for (c, v) in row_out.iter_mut().enumerate() {
+                        *v = row_in[(c + n_phi_h - shift) % n_phi_h];
+                    }
+                }
+                slices.push(turned);
+            }
+        }
+        Tabulation {
+            resolution,
+            slices,
+            seconds: start.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// No tables: every sampler made from it is built as usual.
+    pub fn empty() -> Tabulation {
+        Tabulation {
+            resolution: Resolution {
+                theta_o: 0,
+                ..Resolution::ISOTROPIC
+            },
+            slices: Vec::new(),
+            seconds: 0.0,
+        }
+    }
+
+    /// The resolution tabulated.
+    pub fn resolution(&self) -> Resolution {
+        self.resolution
+    }
+
+    /// A sampler whose slices `builder` makes from these tables (in
+    /// parallel).
+    fn sampler<B: SliceBuilder>(
+        &self,
+        material: &Material,
+        builder: B,
+        cosine_mix: f32,
+    ) -> Result<TabulatedBrdfSampler<B>> {
+        let r = self.resolution;
+        let dists = self
+            .slices
+            .par_iter()
+            .map(|values| builder.build(values, r.phi_h, r.theta_h))
+            .collect::<std::result::Result<Vec<_>, _>>()?;
+        let sampler =
+            TabulatedBrdfSampler::from_built_slices(material.brdf.clone(), r, builder, dists)?;
+        Ok(sampler.with_cosine_mix(cosine_mix)?)
+    }
+}
+
+/// [`make_sampler_spec`] with every table built, taking a uniform or
+/// adaptive sampler's slices from `tables` when they are at its
+/// resolution: the same sampler as building it alone, without tabulating
+/// again. Other samplers are built as usual.
+pub fn make_sampler_tabulated(
+    spec: SamplerSpec,
+    material: &Material,
+    options: &SamplerOptions,
+    tables: &Tabulation,
+) -> Result<AnySampler> {
+    let shared = tables.resolution == self::tables(material, options);
+    match (spec.family().name, spec.simplifier()) {
+        ("uniform", None) if shared => Ok(tables
+            .sampler(material, PiecewiseConstantBuilder, options.cosine_mix)?
+            .into()),
+        (ADAPTIVE, Some(simplifier)) if shared => {
+            let builder = AdaptiveBuilder::by_name(simplifier.short(), options.tolerance)?;
+            Ok(tables
+                .sampler(material, builder, options.cosine_mix)?
+                .into())
+        }
+        _ => {
+            let sampler = make_sampler_spec(spec, material, options)?;
+            sampler.build_all()?;
+            Ok(sampler)
+        }
+    }
+}
+
 /// The error for a sampler whose family's requirement `material` does not
 /// meet.
 fn incompatible(spec: &SamplerSpec, material: &Material) -> Error {
@@ -708,6 +852,64 @@ mod tests {
                 }
             }
             other => panic!("expected UnknownSamplerKind, got {other:?}"),
+        }
+    }
+
+    /// A sampler built from a shared tabulation is the one built alone:
+    /// same storage, same densities.
+    #[test]
+    fn samplers_from_a_shared_tabulation_are_those_built_alone() {
+        let m = nickel();
+        let options = SamplerOptions {
+            resolution: "8x1x32x8".parse().unwrap(),
+            tolerance: None,
+            cosine_mix: 0.1,
+        };
+        let tables = Tabulation::new(&m, options.resolution);
+        for name in ["uniform", "adaptive:chi2", "adaptive:dp", "cosine"] {
+            let spec: SamplerSpec = name.parse().unwrap();
+            let shared = make_sampler_tabulated(spec, &m, &options, &tables).unwrap();
+            let alone = make_sampler_spec(spec, &m, &options).unwrap();
+            alone.build_all().unwrap();
+            assert_eq!(shared.storage_bytes(), alone.storage_bytes(), "{name}");
+            let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
+            for k in 0..50 {
+                let u = Vec2::new((k as f32 + 0.5) / 50.0, (k as f32 * 0.618).fract());
+                let (a, b) = (shared.sample(wo, u), alone.sample(wo, u));
+                assert_eq!(a, b, "{name}");
+                if let Some(s) = a {
+                    assert_eq!(shared.pdf(wo, s.wi), alone.pdf(wo, s.wi), "{name}");
+                }
+            }
+        }
+    }
+
+    /// The turned tables of [`Tabulation::by_rotation`] are those
+    /// tabulated slice by slice, to float rounding (relative to each
+    /// slice's largest value).
+    #[test]
+    fn turned_tabulations_match_the_tabulated_slices() {
+        let m = nickel();
+        let res: Resolution = "6x4x32x8".parse().unwrap();
+        let turned = Tabulation::by_rotation(&m, res);
+        let direct = Tabulation::new(&m, res);
+        assert_eq!(turned.slices.len(), direct.slices.len());
+        for (k, (a, b)) in turned.slices.iter().zip(&direct.slices).enumerate() {
+            let scale = b.iter().copied().fold(0.0f32, f32::max).max(1e-30);
+            let worst = a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs() / scale)
+                .fold(0.0f32, f32::max);
+            assert!(worst < 1e-4, "slice {k}: {worst}");
+            // The support differs at most in cells of next to no mass,
+            // where rounding decides whether a point lies above the
+            // horizon.
+            for (x, y) in a.iter().zip(b) {
+                if (*x == 0.0) != (*y == 0.0) {
+                    assert!(x.max(*y) < 1e-6 * scale, "slice {k}: {x} against {y}");
+                }
+            }
         }
     }
 

@@ -21,7 +21,7 @@ use crate::efficiency::{
 use crate::env::Environment;
 use crate::error::Result;
 use crate::material::Material;
-use crate::registry::{make_sampler_spec, AnySampler, SamplerOps, SamplerOptions};
+use crate::registry::{make_sampler_tabulated, AnySampler, SamplerOps, SamplerOptions, Tabulation};
 use crate::spec::{SamplerAt, SamplerSpec};
 use crate::target::{relative, search_tolerance, Reference, TargetOutcome};
 
@@ -140,15 +140,26 @@ struct Entry {
     target: Option<TargetOutcome>,
 }
 
-fn build(spec: SamplerSpec, material: &Material, options: SamplerOptions) -> Result<Entry> {
-    let sampler = make_sampler_spec(spec, material, &options)?;
+/// `spec` at `options`, all tables built (from `tables` where they fit);
+/// its build time counts the tabulation it shares, as if built alone.
+fn build(
+    spec: SamplerSpec,
+    material: &Material,
+    options: SamplerOptions,
+    tables: &Tabulation,
+) -> Result<Entry> {
     let start = Instant::now();
-    sampler.build_all()?;
+    let sampler = make_sampler_tabulated(spec, material, &options, tables)?;
+    let shared = if spec.family().file_kind.is_some() && options.resolution == tables.resolution() {
+        tables.seconds
+    } else {
+        0.0
+    };
     Ok(Entry {
         spec,
         options,
         sampler,
-        build_seconds: start.elapsed().as_secs_f64(),
+        build_seconds: start.elapsed().as_secs_f64() + shared,
         target: None,
     })
 }
@@ -172,10 +183,18 @@ pub fn report_material(
     };
     let is_reference =
         |e: &Entry| e.spec == plan.reference.sampler && e.options == reference_options;
+    // One tabulation for every sampler with tables at the plan's
+    // resolution; none when no sampler has tables.
+    let tabulated = plan.samplers.iter().any(|s| s.family().file_kind.is_some());
+    let tables = if tabulated {
+        Tabulation::new(material, plan.options.resolution)
+    } else {
+        Tabulation::empty()
+    };
     let mut entries: Vec<Entry> = Vec::new();
     for &spec in plan.samplers {
         progress(Progress::Step(spec.to_string()));
-        entries.push(build(spec, material, plan.options)?);
+        entries.push(build(spec, material, plan.options, &tables)?);
     }
     let reference_at = match entries.iter().position(is_reference) {
         Some(k) => {
@@ -186,7 +205,7 @@ pub fn report_material(
             progress(Progress::Step(format!("reference {}", plan.reference)));
             entries.insert(
                 0,
-                build(plan.reference.sampler, material, reference_options)?,
+                build(plan.reference.sampler, material, reference_options, &tables)?,
             );
             0
         }
@@ -214,6 +233,7 @@ pub fn report_material(
                     relative_variance,
                 },
                 &integrands,
+                &tables,
                 config,
                 target,
                 |t| progress(Progress::Detail(format!("{label}: tolerance {t:.3e}"))),

@@ -16,7 +16,9 @@ use crate::env::Environment;
 use crate::error::Result;
 use crate::material::Material;
 use crate::plot::{figure_bytes, Figure, Marker, Panel, Series, Style};
-use crate::registry::{make_sampler_spec, plain_samplers, AnySampler, SamplerOps, SamplerOptions};
+use crate::registry::{
+    make_sampler_tabulated, plain_samplers, AnySampler, SamplerOps, SamplerOptions, Tabulation,
+};
 use crate::spec::{SamplerAt, SamplerSpec, SimplifierName};
 use crate::target::{relative, search_tolerance, Reference, TargetOutcome};
 
@@ -83,10 +85,15 @@ struct Built {
     target_chosen: bool,
 }
 
-/// `spec` at `options` on `material`, all tables built.
-fn build(spec: SamplerSpec, material: &Material, options: &SamplerOptions) -> Result<Built> {
-    let sampler = make_sampler_spec(spec, material, options)?;
-    sampler.build_all()?;
+/// `spec` at `options` on `material`, all tables built (from `tables`
+/// where they fit).
+fn build(
+    spec: SamplerSpec,
+    material: &Material,
+    options: &SamplerOptions,
+    tables: &Tabulation,
+) -> Result<Built> {
+    let sampler = make_sampler_tabulated(spec, material, options, tables)?;
     Ok(Built {
         spec,
         tolerance: spec.simplifier().and(options.tolerance),
@@ -137,16 +144,22 @@ pub fn run_sweep(
     let mut plain = plain_samplers(material);
     plain.sort_by_key(|&s| s != SamplerSpec::UNIFORM);
     let among_plain = reference_options == *base && plain.contains(&plan.reference.sampler);
+    let tables = Tabulation::new(material, base.resolution);
     let mut built = Vec::new();
     if !among_plain {
         progress(&format!("reference {}", plan.reference));
-        let mut b = build(plan.reference.sampler, material, &reference_options)?;
+        let mut b = build(
+            plan.reference.sampler,
+            material,
+            &reference_options,
+            &tables,
+        )?;
         b.is_reference = true;
         built.push(b);
     }
     for spec in plain {
         progress(&spec.to_string());
-        let mut b = build(spec, material, base)?;
+        let mut b = build(spec, material, base, &tables)?;
         b.is_reference = among_plain && spec == plan.reference.sampler;
         built.push(b);
     }
@@ -165,6 +178,7 @@ pub fn run_sweep(
                 SamplerSpec::adaptive(simplifier),
                 material,
                 &options,
+                &tables,
             )?);
         }
     }
@@ -185,6 +199,7 @@ pub fn run_sweep(
                     relative_variance,
                 },
                 &integrands,
+                &tables,
                 config,
                 target,
                 |t| progress(&format!("target: adaptive:{simplifier} tolerance {t:.3e}")),

@@ -4,9 +4,10 @@
 //! simplifier's tolerance.
 //!
 //! A larger tolerance keeps fewer vertices (less storage) and usually
-//! costs variance. The search starts at the simplifier's default tolerance
-//! and steps by factors of [`STEP`] (up while the target is met, down
-//! while it is not) until the target changes sides, then halves the
+//! costs variance. The search starts at the given tolerance (by default the
+//! simplifier's own; a survey passes the previous material's answer) and
+//! steps by factors of [`STEP`] (up while the target is met, down while it
+//! is not) until the target changes sides, then halves the
 //! bracketing interval in log-tolerance [`BISECTIONS`] times. Every
 //! candidate is built in full, its relative variance taken by quadrature
 //! and its time measured in turns with the reference's
@@ -23,18 +24,22 @@ use serde::Serialize;
 use crate::efficiency::{efficiency_of, time_samplers, EfficiencyConfig, Integrands};
 use crate::error::Result;
 use crate::material::Material;
-use crate::registry::{make_sampler_spec, AnySampler, SamplerOps, SamplerOptions};
+use crate::registry::{make_sampler_tabulated, AnySampler, SamplerOptions, Tabulation};
 use crate::spec::{SamplerSpec, SimplifierName};
 use crate::sweep::default_tolerance;
 
 /// The factor between the tolerances of the stepping phase.
 pub const STEP: f64 = 4.0;
-/// Steps above the default tolerance at most.
-pub const STEPS_UP: usize = 6;
-/// Steps below the default tolerance at most (then tolerance 0).
-pub const STEPS_DOWN: usize = 6;
-/// Halvings of the bracketing interval in log-tolerance.
-pub const BISECTIONS: usize = 3;
+/// Steps above the starting tolerance at most; the stepping also stops
+/// when a step no longer shrinks the storage (every curve is down to its
+/// two ends).
+pub const STEPS_UP: usize = 10;
+/// Steps below the starting tolerance at most (then tolerance 0).
+pub const STEPS_DOWN: usize = 8;
+/// Halvings of the bracketing interval in log-tolerance: the answer is
+/// within a factor 4^(1/4) ≈ 1.41 of the largest tolerance that meets the
+/// target (if efficiency falls with tolerance).
+pub const BISECTIONS: usize = 2;
 
 /// One tolerance the search tried.
 #[derive(Debug, Clone, Serialize)]
@@ -45,6 +50,9 @@ pub struct Candidate {
     pub relative_variance: f64,
     /// Efficiency over the reference's, timed in turns with it.
     pub relative_efficiency: f64,
+    /// t_s of the candidate and of the reference in that timing.
+    pub sampler_seconds: f64,
+    pub reference_seconds: f64,
     pub build_seconds: f64,
 }
 
@@ -102,8 +110,8 @@ pub struct Reference<'a> {
 
 /// Search the tolerance of `simplifier` (at `base`'s resolution and cosine
 /// mixing) for the smallest sampler of `material` whose efficiency is at
-/// least `target` times `reference`'s, on `integrands` (see the module
-/// documentation). Returns the outcome and the chosen sampler, built.
+/// least `target` times `reference`'s, on `integrands`, building the
+/// candidates from `tables` (see the module documentation). Returns the outcome and the chosen sampler, built.
 /// `progress` is called with each tolerance before it is tried.
 #[allow(clippy::too_many_arguments)]
 pub fn search_tolerance(
@@ -112,11 +120,17 @@ pub fn search_tolerance(
     base: &SamplerOptions,
     reference: &Reference,
     integrands: &Integrands,
+    tables: &Tabulation,
     config: &EfficiencyConfig,
     target: f64,
     mut progress: impl FnMut(f64),
 ) -> Result<(TargetOutcome, AnySampler)> {
     let spec = SamplerSpec::adaptive(simplifier);
+    // Only the samplers' own work is compared.
+    let config = &EfficiencyConfig {
+        time_eval: false,
+        ..config.clone()
+    };
     let mut tried: Vec<(Candidate, AnySampler)> = Vec::new();
     let mut try_tolerance = |tolerance: f64| -> Result<(bool, usize)> {
         progress(tolerance);
@@ -124,10 +138,10 @@ pub fn search_tolerance(
             tolerance: Some(tolerance),
             ..*base
         };
-        let sampler = make_sampler_spec(spec, material, &options)?;
         let start = Instant::now();
-        sampler.build_all()?;
-        let build_seconds = start.elapsed().as_secs_f64();
+        let sampler = make_sampler_tabulated(spec, material, &options, tables)?;
+        // As if built alone: with the tabulation it shares.
+        let build_seconds = start.elapsed().as_secs_f64() + tables.seconds;
         let noise_free = integrands.noise_free(&sampler);
         let times = time_samplers(
             material.brdf.as_ref(),
@@ -143,30 +157,41 @@ pub fn search_tolerance(
             storage_bytes: sampler.storage_bytes(),
             relative_variance: noise_free.relative_variance,
             relative_efficiency,
+            sampler_seconds: times[1].sampler_seconds(),
+            reference_seconds: times[0].sampler_seconds(),
             build_seconds,
         };
         let met = relative_efficiency >= target;
+        let storage = candidate.storage_bytes;
         tried.push((candidate, sampler));
-        Ok((met, tried.len() - 1))
+        Ok((met, storage))
     };
 
+    // A start beyond the stepping's reach from the default is brought
+    // back to it.
+    let default = default_tolerance(simplifier);
     let start = base
         .tolerance
         .filter(|t| t.is_finite() && *t > 0.0)
-        .unwrap_or_else(|| default_tolerance(simplifier));
+        .map_or(default, |t| t.min(default * STEP.powi(STEPS_UP as i32)));
     // (tolerance that meets the target, tolerance that does not).
     let (mut good, mut bad): (Option<f64>, Option<f64>) = (None, None);
-    if try_tolerance(start)?.0 {
+    let (met, mut storage) = try_tolerance(start)?;
+    if met {
         good = Some(start);
         let mut t = start;
         for _ in 0..STEPS_UP {
             t *= STEP;
-            if try_tolerance(t)?.0 {
-                good = Some(t);
-            } else {
+            let (met, smaller) = try_tolerance(t)?;
+            if !met {
                 bad = Some(t);
                 break;
             }
+            good = Some(t);
+            if smaller >= storage {
+                break;
+            }
+            storage = smaller;
         }
     } else {
         bad = Some(start);
@@ -203,10 +228,13 @@ pub fn search_tolerance(
             .iter()
             .enumerate()
             .filter(|(_, (c, _))| meets(c))
+            // Of equal storage, the smallest tolerance: beyond the point
+            // where every curve keeps only its two ends, a larger
+            // tolerance changes nothing.
             .min_by(|(_, (a, _)), (_, (b, _))| {
                 a.storage_bytes
                     .cmp(&b.storage_bytes)
-                    .then(b.tolerance.total_cmp(&a.tolerance))
+                    .then(a.tolerance.total_cmp(&b.tolerance))
             })
             .map(|(k, _)| k)
     } else {

@@ -65,7 +65,9 @@ fn parse_floats(line: &str) -> Vec<f64> {
 
 #[test]
 fn every_subcommand_has_help() {
-    for sub in ["sample", "pdf", "eval", "bake", "report", "sweep", "render"] {
+    for sub in [
+        "sample", "pdf", "eval", "bake", "build", "report", "sweep", "survey", "render", "bench",
+    ] {
         let o = acdf(&[sub, "--help"]);
         assert_ok(&o);
         assert!(stdout(&o).contains("Usage"), "{sub}");
@@ -355,26 +357,35 @@ fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// The small measurement settings of the command-line tests.
+const SMALL: [&str; 8] = [
+    "--samples",
+    "2048",
+    "--timing-samples",
+    "64",
+    "--timing-repeats",
+    "1",
+    "--quadrature",
+    "128x64",
+];
+
 #[test]
 fn report_prints_a_table_and_writes_json() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("report.json");
-    let o = acdf(&[
-        "report",
-        "--material",
-        "builtin:gray-plastic",
-        "--samples",
-        "2048",
-        "--timing-samples",
-        "64",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let mut args = vec!["report", "--material", "builtin:gray-plastic"];
+    args.extend(SMALL);
+    args.extend(["--json", json.to_str().unwrap()]);
+    let o = acdf(&args);
     assert_ok(&o);
     let out = stdout(&o);
-    assert!(out.contains("12 outgoing directions x 2048 draws"), "{out}");
+    assert!(
+        out.starts_with("materials: builtin:gray-plastic (as given)"),
+        "{out}"
+    );
+    assert!(out.contains("12 outgoing directions"), "{out}");
     for s in [
-        "uniform",
+        "uniform (ref.)",
         "adaptive:dp",
         "adaptive:vw",
         "adaptive:rw",
@@ -388,6 +399,7 @@ fn report_prints_a_table_and_writes_json() {
             "{s}"
         );
     }
+    assert!(!out.contains("NaN") && !out.contains("inf"), "{out}");
     let rows = read_json(&json);
     let rows = rows.as_array().unwrap();
     assert_eq!(rows.len(), 7);
@@ -397,19 +409,27 @@ fn report_prints_a_table_and_writes_json() {
             "sampler",
             "storage_bytes",
             "compression_ratio",
-            "variance",
-            "seconds_per_sample",
+            "relative_variance",
+            "firefly",
+            "mc_relative_variance",
+            "mc_relative_variance_rel_se",
+            "seconds_per_sampler",
+            "seconds_per_eval",
             "efficiency",
+            "relative_efficiency",
         ] {
             assert!(r.get(key).is_some(), "missing {key} in {r}");
         }
         assert_eq!(r["material"], "gray-plastic");
-        assert!(r["variance"].as_f64().unwrap() > 0.0);
-        assert!(r["seconds_per_sample"].as_f64().unwrap() > 0.0);
+        assert!(r["relative_variance"].as_f64().unwrap() > 0.0);
+        assert!(r["firefly"].as_f64().unwrap() >= 1.0);
+        assert!(r["seconds_per_sampler"].as_f64().unwrap() > 0.0);
     }
     let uniform = &rows[0];
     assert_eq!(uniform["sampler"], "uniform");
+    assert_eq!(uniform["is_reference"], true);
     assert_eq!(uniform["compression_ratio"].as_f64(), Some(1.0));
+    assert_eq!(uniform["relative_efficiency"].as_f64(), Some(1.0));
     // Every adaptive sampler stores less than the uniform one.
     for r in &rows[1..5] {
         assert!(r["compression_ratio"].as_f64().unwrap() > 1.0, "{r}");
@@ -424,6 +444,239 @@ fn report_prints_a_table_and_writes_json() {
         let se0 = uniform["estimate_se"].as_f64().unwrap();
         assert!((e - e0).abs() < 4.0 * (se * se + se0 * se0).sqrt(), "{r}");
     }
+    // The long help says how each column is computed.
+    let help = stdout(&acdf(&["report", "--help"]));
+    for column in [
+        "rel. variance",
+        "Monte Carlo",
+        "firefly",
+        "ns/sample",
+        "ns/eval",
+        "efficiency",
+    ] {
+        assert!(help.contains(column), "{column} missing from the help");
+    }
+}
+
+/// Without --material, the report runs on the measured materials when the
+/// weights are found and on the built-in stand-ins otherwise, and its
+/// first line says which.
+#[test]
+fn report_says_which_materials_it_measures() {
+    let mut args = vec!["report", "--sampler", "cosine", "--resolution", "8x1x32x8"];
+    args.extend(SMALL);
+    let o = Command::new(env!("CARGO_BIN_EXE_acdf"))
+        .args(&args)
+        .env("ACDF_SHARED_DATA", "/nonexistent/shared-data")
+        .output()
+        .unwrap();
+    assert_ok(&o);
+    let out = stdout(&o);
+    let first = out.lines().next().unwrap();
+    assert!(
+        first.starts_with("materials: built-in analytic stand-ins, builtin:nickel"),
+        "{first}"
+    );
+    assert!(
+        out.contains("| nickel ") && out.contains("| gray-plastic "),
+        "{out}"
+    );
+    if shared_data().is_none() {
+        return;
+    }
+    let o = acdf(&args);
+    assert_ok(&o);
+    let out = stdout(&o);
+    let first = out.lines().next().unwrap();
+    assert!(
+        first.starts_with(
+            "materials: measured, nbrdf:nickel, nbrdf:blue-metallic-paint, nbrdf:gray-plastic"
+        ),
+        "{first}"
+    );
+}
+
+/// A target no tolerance reaches is said so, with the best found; a bad
+/// target is a one-line error; nothing prints NaN.
+#[test]
+fn unreachable_targets_are_reported_with_the_best_found() {
+    let mut args = vec![
+        "report",
+        "--material",
+        "builtin:nickel",
+        "--resolution",
+        "8x1x32x8",
+        "--sampler",
+        "adaptive:chi2",
+        "--sampler",
+        "cosine",
+        "--target-efficiency",
+        "1000",
+        "--reference",
+        "uniform",
+    ];
+    args.extend(SMALL);
+    let o = acdf(&args);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("uniform (ref.)"), "{out}");
+    assert!(
+        out.contains("adaptive:chi2: no tolerance reaches 1000 x the efficiency of uniform@8x1x32x8; the best found is"),
+        "{out}"
+    );
+    assert!(!out.contains("NaN") && !out.contains("inf"), "{out}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("x.acdfs");
+    let o = acdf(&[
+        "build",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "adaptive:chi2",
+        "--resolution",
+        "8x1x32x8",
+        "--target-efficiency",
+        "1000",
+        "--reference",
+        "uniform",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert_one_line_error(
+        &o,
+        "no tolerance of adaptive:chi2 reaches 1000 x the efficiency of uniform: the best found is",
+    );
+    assert!(!file.exists());
+    for bad in ["-1", "0", "NaN"] {
+        let o = acdf(&[
+            "build",
+            "--material",
+            "builtin:nickel",
+            &format!("--target-efficiency={bad}"),
+            "--out",
+            file.to_str().unwrap(),
+        ]);
+        assert_one_line_error(&o, "target efficiency");
+    }
+    let o = acdf(&[
+        "build",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "uniform",
+        "--target-efficiency",
+        "0.5",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "searches the tolerance of an adaptive sampler");
+    let o = acdf(&["report", "--reference", "uniform@32x0x256x32"]);
+    assert_one_line_error(&o, "resolution");
+}
+
+/// A reachable target builds and saves the sampler the search chose.
+#[test]
+fn build_meets_a_target_efficiency() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("chi2.acdfs");
+    let o = acdf(&[
+        "build",
+        "--material",
+        "builtin:nickel",
+        "--sampler",
+        "adaptive:chi2",
+        "--resolution",
+        "8x1x32x8",
+        "--target-efficiency",
+        "0.5",
+        "--reference",
+        "uniform",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("adaptive:chi2: tolerance"), "{out}");
+    assert!(
+        out.contains("meets 0.5 x the efficiency of uniform"),
+        "{out}"
+    );
+    assert!(file.exists());
+}
+
+/// An unknown Neural-BRDF material lists the valid names.
+#[test]
+fn unknown_nbrdf_materials_list_the_valid_names() {
+    if shared_data().is_none() {
+        return;
+    }
+    let o = acdf(&["report", "--material", "nbrdf:unobtainium"]);
+    assert_one_line_error(
+        &o,
+        "unknown material `unobtainium`; valid names: alum-bronze",
+    );
+    let err = stderr(&o);
+    for name in ["nickel", "gray-plastic", "yellow-plastic"] {
+        assert!(err.contains(name), "{err}");
+    }
+}
+
+/// The survey on two materials: CSV, JSON, figures and the summary.
+#[test]
+fn survey_writes_csv_json_figures_and_a_summary() {
+    if shared_data().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let o = acdf(&[
+        "survey",
+        "--materials",
+        "nickel,white-paint",
+        "--quadrature",
+        "128x64",
+        "--timing-samples",
+        "64",
+        "--timing-repeats",
+        "1",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("2 materials x 12 samplers in"), "{out}");
+    for sampler in [
+        "uniform@32x16x256x32",
+        "adaptive:chi2@target",
+        "adaptive:opheim",
+        "cosine",
+    ] {
+        assert!(
+            out.contains(&format!("| {sampler} |")),
+            "{sampler} in {out}"
+        );
+    }
+    assert!(!out.contains("NaN") && !out.contains("inf"), "{out}");
+    let csv = std::fs::read_to_string(dir.path().join("survey.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 2 * 12);
+    let json = read_json(&dir.path().join("survey.json"));
+    assert_eq!(json["rows"].as_array().unwrap().len(), 24);
+    assert_eq!(json["summary"].as_array().unwrap().len(), 12);
+    for row in json["rows"].as_array().unwrap() {
+        if row["sampler"] == "uniform@32x16x256x32" {
+            assert_eq!(row["compression"].as_f64(), Some(1.0));
+            assert_eq!(row["relative_efficiency"].as_f64(), Some(1.0));
+        }
+        if row["sampler"] == "adaptive:chi2@target" {
+            let reached = row["target_reached"].as_bool().unwrap();
+            let e = row["relative_efficiency"].as_f64().unwrap();
+            assert_eq!(reached, e >= 0.95, "{row}");
+        }
+    }
+    let svg = std::fs::read_to_string(dir.path().join("survey.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("adaptive:chi2@target"));
+    let png = image::open(dir.path().join("survey.png")).unwrap();
+    assert!(png.width() > 100 && png.height() > 100);
 }
 
 #[test]
@@ -441,6 +694,10 @@ fn sweep_writes_csv_json_svg_and_png() {
         "512",
         "--timing-samples",
         "32",
+        "--timing-repeats",
+        "1",
+        "--quadrature",
+        "128x64",
         "--out",
         dir.path().to_str().unwrap(),
     ]);
@@ -450,7 +707,7 @@ fn sweep_writes_csv_json_svg_and_png() {
     assert!(lines
         .next()
         .unwrap()
-        .starts_with("material,sampler,tolerance,storage_bytes"));
+        .starts_with("material,sampler,tolerance,resolution,is_reference"));
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 2 + 2 * 2);
     assert!(rows[0].starts_with("nickel,uniform,"));
@@ -469,6 +726,10 @@ fn sweep_writes_csv_json_svg_and_png() {
     assert!(dp[0] > dp[1], "{dp:?}");
     let svg = std::fs::read_to_string(dir.path().join("sweep-nickel.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("adaptive:dp"));
+    // Cosine, without tables, is a printed figure; the axis is the
+    // relative efficiency.
+    assert!(svg.contains("cosine (no tables)") && svg.contains("efficiency relative to"));
+    assert!(rows[0].contains(",true,false,"), "{}", rows[0]);
     let png = image::open(dir.path().join("sweep-nickel.png")).unwrap();
     assert!(png.width() > 100 && png.height() > 100);
 }
@@ -798,8 +1059,54 @@ fn bench_prints_a_table_and_writes_documented_json() {
         );
     }
 
+    assert_eq!(v["material_spec"], "builtin:nickel");
+
     let o = acdf(&["bench", "--build-resolution", "2x0x16x8"]);
     assert_one_line_error(&o, "build resolution");
     let o = acdf(&["bench", "--material", "no-such-material", "--samples", "10"]);
     assert_one_line_error(&o, "no-such-material");
+}
+
+/// `acdf bench --material` takes any material spec.
+#[test]
+fn bench_takes_any_material() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("bench.json");
+    // `bench_prints_a_table_and_writes_documented_json` runs the built-in
+    // default; here a measured material when the data is there.
+    if shared_data().is_none() {
+        return;
+    }
+    for m in ["nbrdf:gray-plastic"] {
+        let o = acdf(&[
+            "bench",
+            "--material",
+            m,
+            "--samples",
+            "2000",
+            "--repeats",
+            "1",
+            "--build-resolution",
+            "2x2x16x8",
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        assert_ok(&o);
+        assert!(
+            stdout(&o).starts_with(&format!("material {m},")),
+            "{}",
+            stdout(&o)
+        );
+        let v = read_json(&json);
+        assert_eq!(v["material_spec"], m);
+        assert_eq!(v["material"], "gray-plastic");
+    }
+    let o = acdf(&[
+        "bench",
+        "--material",
+        "nbrdf:unobtainium",
+        "--samples",
+        "10",
+    ]);
+    assert!(!o.status.success());
 }

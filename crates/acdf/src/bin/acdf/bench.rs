@@ -7,13 +7,17 @@
 //! machine only ever makes a run slower). The uniform numbers come from a
 //! fixed-seed PCG so runs are comparable. What is timed:
 //!
-//! - **2D distributions**: the slice of the built-in material for the middle
+//! The material is any `--material` the other commands accept (built-in
+//! nickel by default; `nbrdf:NAME` is evaluated from its baked MERL table,
+//! an RGL `.bsdf` file by its own interpolation).
+//!
+//! - **2D distributions**: the slice of the material for the middle
 //!   outgoing cell (θ_o cell 16 of 32 at the isotropic resolution,
 //!   256 θ_h × 32 φ_h), as a [`PiecewiseConstant2D`] and as an
 //!   [`AdaptiveCdf2D`] (Douglas-Peucker at its default tolerance, the
 //!   default `adaptive` sampler); `sample_batch` over all the numbers on one
 //!   thread, and split into chunks over every rayon thread.
-//! - **BRDF samplers** (`uniform`, `adaptive`) on the built-in material at
+//! - **BRDF samplers** (`uniform`, `adaptive`) on the material at
 //!   the isotropic resolution, then the seed's configuration (`uniform` at
 //!   the paper's 32x16x256x32, 17 MB on nickel) and the recommended one
 //!   (`adaptive:chi2` at the isotropic resolution, a few hundred KB), all
@@ -27,8 +31,9 @@
 //! - **Clock**: the core clock read just before and just after the BRDF
 //!   samplers (a chain of dependent additions), by which the text output
 //!   turns their per-call rates into cycles per call.
-//! - **Builds**: the material tabulated into a MERL-layout table
-//!   ([`MerlTable::tabulate`], not timed), then every slice of the uniform
+//! - **Builds**: the material as a MERL-layout table (a MERL file or a
+//!   baked `nbrdf:` material as it is, any other tabulated with
+//!   [`MerlTable::tabulate`], not timed), then every slice of the uniform
 //!   and the adaptive sampler built from that table with `build_all` (all
 //!   threads) at the build resolution (the paper's 32x16x256x32 by default).
 
@@ -46,12 +51,18 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use acdf::error::{Error, Result};
+use acdf::material::load_material;
+use acdf::registry::effective_resolution;
+use acdf::spec::MaterialSpec;
 
 /// What `acdf bench` runs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchConfig {
-    /// Built-in material name (`acdf_materials::builtin`).
+    /// The material, as `--material` names it (a bare built-in name such
+    /// as `nickel` stands for `builtin:nickel`).
     pub material: String,
+    /// Where `nbrdf:` weights are read from (`None`: the default place).
+    pub nbrdf_weights: Option<std::path::PathBuf>,
     /// Uniform pairs drawn per timed run.
     pub samples: usize,
     /// Runs per figure; the best is reported.
@@ -68,6 +79,7 @@ impl Default for BenchConfig {
     fn default() -> Self {
         BenchConfig {
             material: "nickel".to_string(),
+            nbrdf_weights: None,
             samples: 1_000_000,
             repeats: 3,
             build_resolution: Resolution::PAPER,
@@ -81,8 +93,12 @@ impl Default for BenchConfig {
 /// sizes in bytes, times in seconds.
 #[derive(Debug, Clone, Serialize)]
 pub struct BenchReport {
-    /// The built-in material measured.
+    /// The material measured: its short name (`nickel`, the file stem of
+    /// a `.bsdf` file, ...).
     pub material: String,
+    /// The material as `--material` names it, e.g. `builtin:nickel`,
+    /// `nbrdf:gray-plastic`.
+    pub material_spec: String,
     /// Uniform pairs per timed run.
     pub samples: usize,
     /// Runs per figure (the best is kept).
@@ -414,6 +430,17 @@ fn bench_build<B: SliceBuilder>(
     })
 }
 
+/// The material `name` names: a SPEC, or a bare built-in name.
+fn material_spec(name: &str) -> Result<MaterialSpec> {
+    match name.parse::<MaterialSpec>() {
+        Ok(spec) => Ok(spec),
+        Err(e) if !name.contains(':') && !name.contains('.') => {
+            format!("builtin:{name}").parse().map_err(|_| e)
+        }
+        Err(e) => Err(e),
+    }
+}
+
 /// Run every measurement of `config`.
 pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     if config.samples == 0 {
@@ -424,11 +451,9 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
         });
     }
     let load_average = load_average();
-    let brdf: Arc<dyn Brdf> =
-        acdf_materials::builtin(&config.material).map_err(|e| Error::UnknownMaterial {
-            spec: format!("builtin:{}", config.material),
-            reason: e.to_string(),
-        })?;
+    let spec = material_spec(&config.material)?;
+    let material = load_material(&spec, config.nbrdf_weights.as_deref())?;
+    let brdf: Arc<dyn Brdf> = material.brdf.clone();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(config.seed);
     let u: Vec<Vec2> = (0..config.samples)
         .map(|_| Vec2::new(rng.random(), rng.random()))
@@ -436,7 +461,7 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     let repeats = config.repeats.max(1);
 
     // (a), (b): one slice, middle outgoing cell, as both distributions.
-    let res = Resolution::ISOTROPIC;
+    let res = effective_resolution(&material, Resolution::ISOTROPIC);
     let values = tabulate_slice(&*brdf, &res, res.theta_o / 2, 0);
     let (nx, ny) = (res.phi_h, res.theta_h);
     let uniform_2d = PiecewiseConstant2D::new(&values, nx, ny)?;
@@ -460,7 +485,11 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     drop((uniform, adaptive));
     // Then the seed's configuration against the one this project
     // recommends: the same calls over tables some 70 times apart in size.
-    let seed = UniformBrdfSampler::new(brdf.clone(), Resolution::PAPER, PiecewiseConstantBuilder)?;
+    let seed = UniformBrdfSampler::new(
+        brdf.clone(),
+        effective_resolution(&material, Resolution::PAPER),
+        PiecewiseConstantBuilder,
+    )?;
     seed.build_all()?;
     samplers.push(bench_sampler(&seed, &u, repeats));
     drop(seed);
@@ -472,7 +501,10 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     let clock_ghz_end = clock_ghz();
 
     // (d): the full 4D builds from a MERL-layout table.
-    let merl: Arc<dyn Brdf> = Arc::new(MerlTable::tabulate(&*brdf));
+    let merl: Arc<dyn Brdf> = match spec {
+        MaterialSpec::Merl(_) | MaterialSpec::Nbrdf(_) => brdf.clone(),
+        _ => Arc::new(MerlTable::tabulate(&*brdf)),
+    };
     let build_res = config.build_resolution;
     let builds = vec![
         bench_build(repeats, || {
@@ -492,7 +524,8 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     ];
 
     Ok(BenchReport {
-        material: config.material.clone(),
+        material: material.label(),
+        material_spec: spec.to_string(),
         samples: config.samples,
         repeats,
         threads: rayon::current_num_threads(),
@@ -510,7 +543,7 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
 pub fn format_bench(report: &BenchReport) -> String {
     let mut s = format!(
         "material {}, {} samples, best of {}, {} threads, load average {}\ncpu {}\n",
-        report.material,
+        report.material_spec,
         report.samples,
         report.repeats,
         report.threads,
@@ -584,9 +617,14 @@ pub fn format_bench(report: &BenchReport) -> String {
 /// The arguments of `acdf bench`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Built-in material to measure.
-    #[arg(long, value_name = "NAME", default_value = "nickel")]
+    /// The material to measure: any SPEC the other commands take
+    /// (`builtin:NAME`, `nbrdf:NAME`, a MERL `.binary` or RGL `.bsdf`
+    /// path); a bare built-in name such as `nickel` is `builtin:NAME`.
+    #[arg(long, value_name = "SPEC", default_value = "nickel")]
     material: String,
+    /// The Neural-BRDF weight file for `nbrdf:` materials.
+    #[arg(long, value_name = "PATH")]
+    nbrdf_weights: Option<std::path::PathBuf>,
     /// Uniform pairs per timed run.
     #[arg(long, default_value_t = 1_000_000)]
     samples: usize,
@@ -616,6 +654,7 @@ pub fn run(a: Args) -> Result<()> {
             })?;
     let config = BenchConfig {
         material: a.material,
+        nbrdf_weights: a.nbrdf_weights,
         samples: a.samples,
         repeats: a.repeats,
         build_resolution,

@@ -61,6 +61,7 @@ mod pdf;
 mod render;
 mod report;
 mod sample;
+mod survey;
 mod sweep;
 
 use std::io::Write;
@@ -133,6 +134,11 @@ enum Command {
     /// directory.
     #[command(after_long_help = report::COLUMNS)]
     Sweep(sweep::Args),
+    /// Every sampler on all 100 MERL materials against the seed's
+    /// 32x16x256x32 table: CSV, JSON, a scatter plot (SVG, PNG) of
+    /// compression against relative efficiency, and a summary table.
+    #[command(after_long_help = survey::COLUMNS)]
+    Survey(survey::Args),
     /// Render a sphere lit by an environment with each sampler and compare
     /// with a high-count reference.
     Render(render::Args),
@@ -186,6 +192,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Build(a) => build::run(a),
         Command::Report(a) => report::run(a),
         Command::Sweep(a) => sweep::run(a),
+        Command::Survey(a) => survey::run(a),
         Command::Render(a) => render::run(a),
         Command::Bench(a) => bench::run(a),
     }
