@@ -1,8 +1,10 @@
 //! `acdf-core` is the vocabulary every other acdf crate speaks: the traits for
 //! sampling distributions over the unit interval and square (`Distribution1D`,
 //! `Distribution2D`), for BRDF samplers (`BxdfSampler`) and BRDF sources
-//! (`Brdf`); the geometry of the local shading frame, spherical and
-//! Rusinkiewicz half/difference coordinates; the warps shared by several
+//! (`Brdf`), for lights at infinity and the samplers of directions over the
+//! whole sphere that serve them (`Light`, `SphereSampler`); the geometry
+//! of the local shading frame, spherical and Rusinkiewicz half/difference
+//! coordinates; the warps shared by several
 //! samplers; the hot-path helpers every sampler uses (polynomial
 //! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
 //! their SIMD-lane form for batches in `search::lanes`), with the one place
@@ -28,6 +30,7 @@ pub mod distribution;
 pub mod error;
 pub mod fast;
 pub mod geometry;
+pub mod light;
 pub mod sampler;
 pub mod search;
 pub mod warp;
@@ -39,6 +42,7 @@ pub use distribution::{
 };
 pub use error::{Error, Result};
 pub use geometry::{Frame, HalfDiff};
+pub use light::{usable_normal, Light, LightSample, SphereSample, SphereSampler};
 pub use sampler::{is_valid_outgoing, missed_share, BxdfSample, BxdfSampler, MissedShare};
 
 /// Re-exported so that downstream crates name the same vector types.

@@ -50,12 +50,15 @@
 
 pub use acdf_core as core;
 pub use acdf_cosine as cosine;
+pub use acdf_lights as lights;
 pub use acdf_materials as materials;
 pub use acdf_tabulated as tabulated;
 pub use acdf_uniform as uniform;
 
 pub mod efficiency;
 pub mod env;
+pub mod env_registry;
+pub mod env_report;
 pub mod error;
 pub mod material;
 pub mod plot;
