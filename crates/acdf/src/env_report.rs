@@ -398,6 +398,10 @@ pub struct EnvReportRow {
     pub efficiency: f64,
     /// Efficiency divided by the uniform sampler's on the same map.
     pub relative_efficiency: Option<f64>,
+    /// The uniform sampler's relative variance divided by this one's: the
+    /// relative efficiency without the timing, free of sampling noise and
+    /// of the machine's load.
+    pub variance_ratio: Option<f64>,
     /// Per normal: (normal, E, V/E² by quadrature, V/E² by Monte Carlo,
     /// missed share).
     pub per_normal: Vec<NormalLine>,
@@ -495,6 +499,7 @@ pub fn report_map(
             ns_per_sample: seconds * 1e9,
             efficiency: 1.0 / (relative_variance * seconds),
             relative_efficiency: None,
+            variance_ratio: None,
             per_normal,
         });
     }
@@ -507,6 +512,8 @@ pub fn report_map(
             r.compression =
                 (r.storage_bytes > 0).then(|| u.storage_bytes as f64 / r.storage_bytes as f64);
             r.relative_efficiency = Some(r.efficiency / u.efficiency).filter(|e| e.is_finite());
+            r.variance_ratio =
+                Some(u.relative_variance / r.relative_variance).filter(|e| e.is_finite());
         }
     }
     Ok(rows)
@@ -526,6 +533,7 @@ pub fn format_env_table(rows: &[EnvReportRow]) -> String {
         "ns/sample",
         "efficiency (1/s)",
         "rel. eff.",
+        "variance ratio",
     ]
     .map(String::from)
     .to_vec();
@@ -549,10 +557,62 @@ pub fn format_env_table(rows: &[EnvReportRow]) -> String {
                 format!("{:.0}", r.ns_per_sample),
                 format!("{:.3e}", r.efficiency),
                 opt(r.relative_efficiency, &|e| format!("{e:.2}")),
+                opt(r.variance_ratio, &|e| format!("{e:.3}")),
             ]
         })
         .collect();
     markdown(&header, &body, 3)
+}
+
+/// The figure of a report: one panel per map, the mean relative variance
+/// against storage, the uniform sampler as the marked point and one line
+/// per other family (through its simplifiers or normal grids, by storage).
+/// The compensated samplers are left out: alone they are biased.
+pub fn env_figure(rows: &[EnvReportRow]) -> crate::plot::Figure {
+    let mut maps: Vec<&str> = Vec::new();
+    for r in rows {
+        if !maps.contains(&r.map.as_str()) {
+            maps.push(&r.map);
+        }
+    }
+    let panels = maps
+        .iter()
+        .enumerate()
+        .map(|(i, &m)| {
+            let of_map: Vec<&EnvReportRow> = rows
+                .iter()
+                .filter(|r| r.map == m && !r.sampler.contains("-comp"))
+                .collect();
+            let uniform = of_map
+                .iter()
+                .find(|r| r.sampler == EnvSamplerSpec::UNIFORM.to_string())
+                .map_or((0.0, 0.0), |r| (r.storage_bytes as f64, r.relative_variance));
+            let mut series: Vec<crate::plot::Series> = Vec::new();
+            for r in of_map.iter().filter(|r| r.sampler != "uniform") {
+                let family = r.sampler.split(':').next().unwrap_or("").to_string();
+                let point = (r.storage_bytes as f64, r.relative_variance);
+                match series.iter_mut().find(|s| s.label == family) {
+                    Some(s) => s.points.push(point),
+                    None => series.push(crate::plot::Series {
+                        label: family,
+                        points: vec![point],
+                    }),
+                }
+            }
+            crate::plot::Panel {
+                y_label: format!("{m}: mean V/E² of the irradiance"),
+                series,
+                uniform,
+                cosine: 0.0,
+                legend: i == 0,
+            }
+        })
+        .collect();
+    crate::plot::Figure {
+        title: "Environment samplers: relative variance of the irradiance against storage"
+            .to_string(),
+        panels,
+    }
 }
 
 #[cfg(test)]

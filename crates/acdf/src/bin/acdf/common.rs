@@ -209,14 +209,14 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
 }
 
 /// Read `x,y,z` lines from stdin (further columns, blank lines, `#`
-/// comments and a `wi_x,...` header are ignored) and call `each` with the
+/// comments and a `wi_x,...` or `x,...` header are ignored) and call `each` with the
 /// normalised direction (zero if it has no length).
 pub fn for_each_direction(mut each: impl FnMut(Vec3) -> Result<()>) -> Result<()> {
     let stdin = std::io::stdin();
     for (k, line) in stdin.lock().lines().enumerate() {
         let line = line?;
         let t = line.trim();
-        if t.is_empty() || t.starts_with('#') || t.starts_with("wi_x") {
+        if t.is_empty() || t.starts_with('#') || t.starts_with("wi_x") || t.starts_with("x,") {
             continue;
         }
         let fields: Vec<&str> = t.split(',').map(str::trim).collect();
