@@ -37,6 +37,10 @@ pub enum Check {
     /// ([`missed_share`](acdf_core::missed_share)): light the
     /// sampler can never draw.
     Support,
+    /// An environment sampler's density does not follow the function its
+    /// table is built for: the chi-square divergence of that function from
+    /// the density exceeds the configured bound.
+    Target,
     /// The code under test panicked.
     Panic,
 }

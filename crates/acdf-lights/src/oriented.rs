@@ -197,7 +197,7 @@ impl<B: TableBuilder> std::fmt::Debug for OrientedSampler<B> {
 impl<B: TableBuilder> OrientedSampler<B> {
     /// The default defensive share: the probability of drawing from the
     /// plain luminance table whatever the normal.
-    pub const DEFAULT_DEFENSIVE: f32 = 0.1;
+    pub const DEFAULT_DEFENSIVE: f32 = 0.05;
 
     /// A sampler named `name` over `map` with the normal cells of `grid`,
     /// the tables built by `builder`, and the defensive share `defensive`

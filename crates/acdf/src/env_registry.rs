@@ -36,7 +36,7 @@ pub struct EnvSamplerOptions {
 }
 
 impl Default for EnvSamplerOptions {
-    /// Default tolerances, 8 × 16 normal cells, defensive share 0.1.
+    /// Default tolerances, 8 × 16 normal cells, defensive share 0.05.
     fn default() -> Self {
         EnvSamplerOptions {
             tolerance: None,

@@ -586,7 +586,9 @@ pub fn env_figure(rows: &[EnvReportRow]) -> crate::plot::Figure {
             let uniform = of_map
                 .iter()
                 .find(|r| r.sampler == EnvSamplerSpec::UNIFORM.to_string())
-                .map_or((0.0, 0.0), |r| (r.storage_bytes as f64, r.relative_variance));
+                .map_or((0.0, 0.0), |r| {
+                    (r.storage_bytes as f64, r.relative_variance)
+                });
             let mut series: Vec<crate::plot::Series> = Vec::new();
             for r in of_map.iter().filter(|r| r.sampler != "uniform") {
                 let family = r.sampler.split(':').next().unwrap_or("").to_string();

@@ -22,7 +22,7 @@ pub struct EnvSamplerArgs {
     pub normal_cells: String,
     /// The oriented sampler's defensive share: the probability of drawing
     /// from the plain luminance table whatever the normal, in (0, 1].
-    #[arg(long, value_name = "A", default_value_t = 0.1)]
+    #[arg(long, value_name = "A", default_value_t = 0.05)]
     pub defensive: f32,
     /// Replace NaN, infinite and negative texels by 0 (with a warning on
     /// stderr) instead of rejecting the map.
