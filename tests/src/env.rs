@@ -32,6 +32,10 @@
 //!
 //! Panics anywhere are caught and reported as [`Check::Panic`].
 
+// `!(x <= bound)` is how this module says "above the bound, or NaN": the
+// negated comparison is the point, since NaN must fail.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Arc;
 
@@ -81,7 +85,7 @@ impl Default for EnvConfig {
     fn default() -> Self {
         EnvConfig {
             samples: 200_000,
-            seed: 0x5eed_e4f,
+            seed: 0x05ee_de4f,
             z_cells: 50,
             phi_cells: 100,
             significance: 0.01,
@@ -106,7 +110,7 @@ pub fn env_test_maps() -> Vec<(&'static str, Arc<EnvMap>)> {
         (
             "sky64x32",
             map(64, 32, &|k, j| {
-                if j < 16 && (k < 2 || k > 61) && (5..8).contains(&j) {
+                if j < 16 && !(2..=61).contains(&k) && (5..8).contains(&j) {
                     Rgb::new(400.0, 380.0, 300.0)
                 } else if j < 16 {
                     Rgb::new(0.3, 0.5, 1.0) * (1.0 + 0.05 * j as f32 + 0.01 * k as f32)

@@ -156,6 +156,10 @@ struct Node<D> {
     irradiance: f64,
 }
 
+/// A node built on first use; `None` inside once built means its table
+/// could not be built.
+type LazyNode<D> = OnceLock<Option<Node<D>>>;
+
 /// The mixture a normal samples from: up to [`MAX_NODES`] node
 /// distributions with their probabilities, and the defensive (plain
 /// luminance) distribution's probability.
@@ -178,7 +182,7 @@ pub struct OrientedSampler<B: TableBuilder> {
     map: Arc<EnvMap>,
     builder: B,
     grid: NormalGrid,
-    nodes: Box<[OnceLock<Option<Node<B::Dist>>>]>,
+    nodes: Box<[LazyNode<B::Dist>]>,
     plain: B::Dist,
     defensive: f32,
 }
@@ -302,8 +306,8 @@ impl<B: TableBuilder> OrientedSampler<B> {
         }
         if total > 0.0 {
             let share = (1.0 - self.defensive) as f64 / total;
-            for k in 0..mix.len {
-                mix.prob[k] = (weights[k] * share) as f32;
+            for (p, w) in mix.prob.iter_mut().zip(&weights).take(mix.len) {
+                *p = (w * share) as f32;
             }
             mix.defensive = self.defensive;
         } else {

@@ -4,7 +4,9 @@
 use std::path::PathBuf;
 
 use acdf::env_registry::{report_env_samplers, EnvSamplerSpec};
-use acdf::env_report::{env_figure, format_env_table, report_map, EnvReportConfig};
+use acdf::env_report::{
+    env_figure, format_env_table, report_map, EnvReportConfig, ReportedSampler,
+};
 use acdf::error::{Error, Result};
 use acdf::plot::figure_svg;
 
@@ -32,10 +34,11 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = 1 << 14)]
     mc_samples: usize,
     /// Draws per timed pass.
-    #[arg(long, value_name = "N", default_value_t = 1 << 18)]
+    #[arg(long, value_name = "N", default_value_t = 1 << 16)]
     timing_samples: usize,
-    /// Timed passes per sampler, the fastest kept.
-    #[arg(long, value_name = "N", default_value_t = 3)]
+    /// Timed passes per sampler, taken by the samplers in turns, the
+    /// fastest kept.
+    #[arg(long, value_name = "N", default_value_t = 9)]
     timing_passes: usize,
     /// Seed of the uniform numbers.
     #[arg(long, default_value_t = 2005)]
@@ -82,53 +85,37 @@ pub fn run(a: Args) -> Result<()> {
     println!(
         "irradiance E(n) = ∫ Y(L) max(0, n·ω) dω over {} normals (32 Fibonacci, the 2 poles); \
          variance by quadrature over the texels, Monte Carlo check with {} draws per normal \
-         (seed {}); time: sample + radiance lookup, best of {} single-thread passes of {} draws",
+         (seed {}); time: sample + radiance lookup, best of {} single-thread passes of {} draws \
+         taken by the samplers in turns",
         config.normals.len(),
         config.mc_samples,
         config.seed,
         config.timing_passes,
         config.timing_samples
     );
+    // Every sampler once, the oriented ones once per grid of normals
+    // (labelled with it when there are several).
+    let mut samplers = Vec::new();
+    for spec in &specs {
+        if spec.family().name == "oriented" {
+            for grid in &grids {
+                let mut r = ReportedSampler::new(*spec, a.options.options_for(*grid));
+                if grids.len() > 1 {
+                    r.label = format!("{spec} ({}x{})", grid.rows, grid.columns);
+                }
+                samplers.push(r);
+            }
+        } else {
+            samplers.push(ReportedSampler::new(*spec, a.options.options_for(grids[0])));
+        }
+    }
     let mut rows = Vec::new();
     for (path, map) in &maps {
         let label = map_label(path);
         let pb = spinner(&label);
-        let (oriented, plain): (Vec<EnvSamplerSpec>, Vec<EnvSamplerSpec>) = specs
-            .iter()
-            .partition(|s| s.family().name == "oriented" && grids.len() > 1);
-        let mut map_rows = report_map(
-            &label,
-            path.clone(),
-            map.clone(),
-            &plain,
-            &a.options.options_for(grids[0]),
-            &config,
-            |m| pb.set_message(m.to_string()),
-        )?;
-        for grid in &grids {
-            if oriented.is_empty() {
-                break;
-            }
-            let mut more = report_map(
-                &label,
-                path.clone(),
-                map.clone(),
-                &oriented,
-                &a.options.options_for(*grid),
-                &config,
-                |m| pb.set_message(m.to_string()),
-            )?;
-            let u = map_rows.iter().find(|r| r.sampler == "uniform");
-            for r in &mut more {
-                r.sampler = format!("{} ({}x{})", r.sampler, grid.rows, grid.columns);
-                if let Some(u) = u {
-                    r.compression = Some(u.storage_bytes as f64 / r.storage_bytes.max(1) as f64);
-                    r.relative_efficiency = Some(r.efficiency / u.efficiency);
-                    r.variance_ratio = Some(u.relative_variance / r.relative_variance);
-                }
-            }
-            map_rows.extend(more);
-        }
+        let map_rows = report_map(&label, path.clone(), map.clone(), &samplers, &config, |m| {
+            pb.set_message(m.to_string())
+        })?;
         pb.finish_and_clear();
         print!("{}", format_env_table(&map_rows));
         println!();
