@@ -350,8 +350,11 @@ mod tests {
         assert_eq!(map.radiance(d), Rgb::new(1.0, 0.0, 0.0));
         assert_eq!(map.radiance(Vec3::ZERO), Rgb::ZERO);
         assert_eq!(map.radiance_bilinear(Vec3::NAN), Rgb::ZERO);
-        // Bilinear lookups at texel centres are the texels.
-        let c = map.grid().texel_direction(1, 1);
+        // Bilinear lookups at texel centres (in θ and φ) are the texels.
+        let c = acdf_core::geometry::spherical_direction(
+            0.75 * std::f32::consts::PI,
+            0.75 * std::f32::consts::PI,
+        );
         assert!((map.radiance_bilinear(c) - Rgb::new(1.0, 0.0, 0.0)).length() < 1e-3);
         let mean = map.luminance_integral() / (4.0 * std::f64::consts::PI);
         assert!(mean > 0.5 && mean < 2.0);

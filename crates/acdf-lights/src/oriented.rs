@@ -7,11 +7,17 @@
 //! L · Ω · max(0, n_c·ω) ([`oriented_table`]), compressed by the plug-in's
 //! [`TableBuilder`]. A cell is built the first time a query needs it, so a
 //! scene pays only for the orientations it has. For a normal n the sampler
-//! draws from an exact mixture: the neighbouring cells of n (bilinear in
+//! draws from an exact mixture: the neighbouring cells of n (linear in
 //! the grid's coordinates, each weighted by its irradiance too), plus a
 //! defensive share of the plain luminance table, which covers every texel
 //! with light, so that the estimator is unbiased whatever the normal; the
 //! pdf is the mixture's.
+//!
+//! The neighbouring cells are the three corners of the triangle of cell
+//! centres around n (linear weights in (z, φ)), each weighted further by
+//! its table's integral, which is its irradiance: the mixture then
+//! interpolates the integrand L max(0, n·ω) rather than normalised
+//! densities.
 
 use std::sync::{Arc, OnceLock};
 
@@ -38,9 +44,9 @@ pub struct NormalGrid {
 }
 
 /// At most this many nodes take part in one normal's mixture.
-pub const MAX_NODES: usize = 4;
+pub const MAX_NODES: usize = 3;
 
-/// The nodes of a normal's mixture and their bilinear weights.
+/// The nodes of a normal's mixture and their weights.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Nodes {
     pub index: [usize; MAX_NODES],
@@ -96,11 +102,14 @@ impl NormalGrid {
         Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, z as f32)
     }
 
-    /// The nodes whose tables a normal `n` (unit) mixes, with bilinear
-    /// weights in (z, φ) between the four surrounding cell centres; above
-    /// the first row's centres (below the last row's) the weight moves
-    /// linearly in z from the row's two nearest cells to the pole's node.
-    /// Zero weights are left out; the weights sum to 1.
+    /// The nodes whose tables a normal `n` (unit) mixes, with weights
+    /// linear in (z, φ): the square of four cell centres around n is cut
+    /// along a diagonal into two triangles, and n gets the barycentric
+    /// weights of the three corners of its triangle (three tables to
+    /// evaluate per density rather than four). Above the first row's
+    /// centres (below the last row's) the weight moves linearly in z from
+    /// the row's two nearest cells to the pole's node. Zero weights are
+    /// left out; the weights sum to 1.
     pub fn nodes(&self, n: Vec3) -> Nodes {
         let (rows, cols) = (self.rows, self.columns);
         let sz = (1.0 - n.z.clamp(-1.0, 1.0)) * 0.5 * rows as f32 - 0.5;
@@ -139,10 +148,15 @@ impl NormalGrid {
             let r0 = (sz.floor() as usize).min(rows - 1);
             let r1 = (r0 + 1).min(rows - 1);
             let fz = if r1 == r0 { 0.0 } else { sz - r0 as f32 };
-            push(r0 * cols + c0, (1.0 - fz) * (1.0 - fp));
-            push(r0 * cols + c1, (1.0 - fz) * fp);
-            push(r1 * cols + c0, fz * (1.0 - fp));
-            push(r1 * cols + c1, fz * fp);
+            if fz + fp <= 1.0 {
+                push(r0 * cols + c0, 1.0 - fz - fp);
+                push(r1 * cols + c0, fz);
+                push(r0 * cols + c1, fp);
+            } else {
+                push(r1 * cols + c1, fz + fp - 1.0);
+                push(r1 * cols + c0, 1.0 - fp);
+                push(r0 * cols + c1, 1.0 - fz);
+            }
         }
         out
     }
