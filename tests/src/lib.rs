@@ -139,7 +139,7 @@ pub use distribution_checks::{
 pub use env::{
     check_env_family, check_env_sampler, env_test_maps, env_test_normals, EnvConfig, EnvTarget,
 };
-pub use report::{Check, ChiSquareLine, Failure, Report};
+pub use report::{assert_rejected, Check, ChiSquareLine, Failure, Report};
 pub use sampler_checks::{check_sampler, check_sampler_family, SamplerConfig, EXTREME_U};
 
 /// One `#[test]` running [`check_sampler_family`] on `build` with `brdfs`

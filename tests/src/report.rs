@@ -188,3 +188,18 @@ impl fmt::Display for Report {
         Ok(())
     }
 }
+
+/// Print the report and assert that the battery rejected what it checked
+/// (a deliberately broken sampler or distribution) through `expected`;
+/// other checks may fail too.
+pub fn assert_rejected(report: &Report, expected: Check) {
+    report.print();
+    assert!(
+        !report.passed(),
+        "the battery accepted a broken sampler:\n{report}"
+    );
+    assert!(
+        report.failed(expected),
+        "rejected, but not by {expected:?}:\n{report}"
+    );
+}

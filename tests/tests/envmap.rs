@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use acdf_adaptive::{adaptive_env_sampler, oriented_env_sampler, AdaptiveBuilder};
 use acdf_conformance::{
-    check_env_family, check_env_sampler, env_test_maps, env_test_normals, Check, EnvConfig,
+    assert_rejected, check_env_family, check_env_sampler, env_test_maps, env_test_normals, Check, EnvConfig,
     EnvTarget, Report,
 };
 use acdf_core::{SphereSample, SphereSampler, Vec2, Vec3};
@@ -192,17 +192,6 @@ fn mutant_config() -> EnvConfig {
     }
 }
 
-fn assert_rejected(report: &Report, expected: Check) {
-    report.print();
-    assert!(
-        !report.passed(),
-        "the battery accepted a broken sampler:\n{report}"
-    );
-    assert!(
-        report.failed(expected),
-        "rejected, but not by {expected:?}:\n{report}"
-    );
-}
 
 /// The table built from the luminance alone, without the texels' solid
 /// angle (the classic "missing sin θ"): the sampler is consistent with its

@@ -79,68 +79,38 @@ pub trait SphereSampler: Send + Sync {
     }
 }
 
-impl<T: SphereSampler + ?Sized> SphereSampler for Box<T> {
-    fn name(&self) -> &str {
-        (**self).name()
-    }
-    fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        (**self).sample(normal, u)
-    }
-    fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        (**self).pdf(normal, dir)
-    }
-    fn storage_bytes(&self) -> usize {
-        (**self).storage_bytes()
-    }
-    fn sample_batch(&self, normal: Option<Vec3>, u: &[Vec2], out: &mut [Option<SphereSample>]) {
-        (**self).sample_batch(normal, u, out)
-    }
-    fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
-        (**self).pdf_batch(normal, dir, out)
-    }
+/// The sampler behind a pointer is a sampler: `Box`, `&` and `Arc`.
+macro_rules! forward_sphere_sampler {
+    ($($ptr:ty),+) => {$(
+        impl<T: SphereSampler + ?Sized> SphereSampler for $ptr {
+            fn name(&self) -> &str {
+                (**self).name()
+            }
+            fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
+                (**self).sample(normal, u)
+            }
+            fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
+                (**self).pdf(normal, dir)
+            }
+            fn storage_bytes(&self) -> usize {
+                (**self).storage_bytes()
+            }
+            fn sample_batch(
+                &self,
+                normal: Option<Vec3>,
+                u: &[Vec2],
+                out: &mut [Option<SphereSample>],
+            ) {
+                (**self).sample_batch(normal, u, out)
+            }
+            fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
+                (**self).pdf_batch(normal, dir, out)
+            }
+        }
+    )+};
 }
 
-impl<T: SphereSampler + ?Sized> SphereSampler for &T {
-    fn name(&self) -> &str {
-        (**self).name()
-    }
-    fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        (**self).sample(normal, u)
-    }
-    fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        (**self).pdf(normal, dir)
-    }
-    fn storage_bytes(&self) -> usize {
-        (**self).storage_bytes()
-    }
-    fn sample_batch(&self, normal: Option<Vec3>, u: &[Vec2], out: &mut [Option<SphereSample>]) {
-        (**self).sample_batch(normal, u, out)
-    }
-    fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
-        (**self).pdf_batch(normal, dir, out)
-    }
-}
-
-impl<T: SphereSampler + ?Sized> SphereSampler for std::sync::Arc<T> {
-    fn name(&self) -> &str {
-        (**self).name()
-    }
-    fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        (**self).sample(normal, u)
-    }
-    fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        (**self).pdf(normal, dir)
-    }
-    fn storage_bytes(&self) -> usize {
-        (**self).storage_bytes()
-    }
-    fn sample_batch(&self, normal: Option<Vec3>, u: &[Vec2], out: &mut [Option<SphereSample>]) {
-        (**self).sample_batch(normal, u, out)
-    }
-    fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
-        (**self).pdf_batch(normal, dir, out)
-    }
-}
+forward_sphere_sampler!(Box<T>, &T, std::sync::Arc<T>);
 
 /// A direction drawn towards a light, with its density and the radiance
 /// arriving from it.

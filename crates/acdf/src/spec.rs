@@ -214,26 +214,40 @@ impl FromStr for SamplerSpec {
     /// A family's name, or for a family with simplifiers `FAMILY` (its first
     /// simplifier) or `FAMILY:SIMPLIFIER`.
     fn from_str(s: &str) -> Result<Self, Error> {
-        let (head, tail) = match s.split_once(':') {
-            Some((h, t)) => (h, Some(t)),
-            None => (s, None),
-        };
-        let unknown = || Error::UnknownSampler {
-            name: s.to_string(),
-            known: sampler_names().join(", "),
-        };
-        let family = family(head).ok_or_else(unknown)?;
-        let simplifier = match (family.simplifiers, tail) {
-            (false, None) => None,
-            (false, Some(_)) => return Err(unknown()),
-            (true, None) => Some(SimplifierName::default_simplifier()),
-            (true, Some(t)) => Some(SimplifierName::find(t).ok_or_else(unknown)?),
-        };
-        Ok(SamplerSpec {
-            family: family.name,
-            simplifier,
-        })
+        let (family, simplifier) = parse_family_name(
+            s,
+            |head| family(head).map(|f| (f.name, f.simplifiers)),
+            sampler_names,
+        )?;
+        Ok(SamplerSpec { family, simplifier })
     }
+}
+
+/// Parse `FAMILY` or `FAMILY:SIMPLIFIER`: `family` gives a family's name
+/// and whether it takes a simplifier (the plain name then stands for the
+/// table's first); anything else is [`Error::UnknownSampler`] listing
+/// `names()`. Shared by the BRDF and the environment registries.
+pub(crate) fn parse_family_name(
+    s: &str,
+    family: impl Fn(&str) -> Option<(&'static str, bool)>,
+    names: impl Fn() -> Vec<String>,
+) -> Result<(&'static str, Option<SimplifierName>), Error> {
+    let (head, tail) = match s.split_once(':') {
+        Some((h, t)) => (h, Some(t)),
+        None => (s, None),
+    };
+    let unknown = || Error::UnknownSampler {
+        name: s.to_string(),
+        known: names().join(", "),
+    };
+    let (name, simplifiers) = family(head).ok_or_else(unknown)?;
+    let simplifier = match (simplifiers, tail) {
+        (false, None) => None,
+        (false, Some(_)) => return Err(unknown()),
+        (true, None) => Some(SimplifierName::default_simplifier()),
+        (true, Some(t)) => Some(SimplifierName::find(t).ok_or_else(unknown)?),
+    };
+    Ok((name, simplifier))
 }
 
 impl fmt::Display for SamplerSpec {

@@ -82,20 +82,25 @@ impl TableArgs {
             }
             (None, false) => Resolution::ISOTROPIC,
         };
-        if let Some(t) = self.tolerance {
-            if t.is_nan() || t < 0.0 {
-                return Err(Error::InvalidArgument {
-                    what: "tolerance",
-                    value: t.to_string(),
-                    reason: "must be a non-negative number".into(),
-                });
-            }
-        }
+        validate_tolerance(self.tolerance)?;
         Ok(SamplerOptions {
             resolution,
             tolerance: self.tolerance,
             cosine_mix: self.cosine_mix,
         })
+    }
+}
+
+/// A simplifier tolerance from the command line: none, or a non-negative
+/// number.
+pub fn validate_tolerance(tolerance: Option<f64>) -> Result<()> {
+    match tolerance {
+        Some(t) if t.is_nan() || t < 0.0 => Err(Error::InvalidArgument {
+            what: "tolerance",
+            value: t.to_string(),
+            reason: "must be a non-negative number".into(),
+        }),
+        _ => Ok(()),
     }
 }
 

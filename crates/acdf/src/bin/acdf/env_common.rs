@@ -5,9 +5,13 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use acdf::env_registry::{env_sampler_help, env_sampler_long_help, EnvSamplerOptions};
+use acdf::env_registry::{
+    env_sampler_help, env_sampler_long_help, make_env_sampler, parse_sphere_direction_degrees,
+    AnyEnvSampler, EnvSamplerOptions,
+};
 use acdf::error::{Error, Result};
 use acdf::lights::{EnvMap, NormalGrid};
+use acdf_core::Vec3;
 use clap::Args;
 
 #[derive(Args, Debug, Clone)]
@@ -47,15 +51,7 @@ impl EnvSamplerArgs {
 
     /// Every grid of `--normal-cells` (a comma-separated list of RxC).
     pub fn grids(&self) -> Result<Vec<NormalGrid>> {
-        if let Some(t) = self.tolerance {
-            if t.is_nan() || t < 0.0 {
-                return Err(Error::InvalidArgument {
-                    what: "tolerance",
-                    value: t.to_string(),
-                    reason: "must be a non-negative number".into(),
-                });
-            }
-        }
+        crate::common::validate_tolerance(self.tolerance)?;
         if !(self.defensive > 0.0 && self.defensive <= 1.0) {
             return Err(Error::InvalidArgument {
                 what: "defensive share",
@@ -73,16 +69,6 @@ impl EnvSamplerArgs {
             },
         )
     }
-}
-
-/// The sampler help of the environment subcommands, from the registry.
-pub fn sampler_help() -> String {
-    env_sampler_help()
-}
-
-/// The long sampler help of the environment subcommands.
-pub fn sampler_long_help() -> String {
-    env_sampler_long_help()
 }
 
 /// Read the map at `path`: a typed error for a file that cannot be read or
@@ -132,11 +118,40 @@ pub fn map_label(path: &Path) -> String {
     stem.strip_suffix("_1k").map(str::to_string).unwrap_or(stem)
 }
 
-/// The `--env` argument of the single-map subcommands.
+/// What `env-sample` and `env-pdf` share: one map, one sampler, a normal.
 #[derive(Args, Debug, Clone)]
-pub struct EnvFileArg {
+pub struct EnvQueryArgs {
     /// The environment map: a lat-long Radiance `.hdr` or OpenEXR `.exr`,
     /// +z up, row 0 at the zenith, φ = 0 along +x at the left edge.
     #[arg(long, value_name = "FILE")]
     pub env: PathBuf,
+    #[arg(
+        long,
+        value_name = "NAME",
+        default_value = "adaptive",
+        help = env_sampler_help(),
+        long_help = env_sampler_long_help()
+    )]
+    pub sampler: String,
+    #[command(flatten)]
+    pub options: EnvSamplerArgs,
+    /// Shading normal THETA_DEG,PHI_DEG in the map's frame (θ from +z in
+    /// [0, 180], φ from +x towards +y); none by default.
+    #[arg(long, value_name = "T,P", allow_hyphen_values = true)]
+    pub normal: Option<String>,
+}
+
+impl EnvQueryArgs {
+    /// The sampler for the map, and the normal: the arguments are checked
+    /// before the map is read.
+    pub fn sampler(&self) -> Result<(AnyEnvSampler, Option<Vec3>)> {
+        let normal = self
+            .normal
+            .as_deref()
+            .map(parse_sphere_direction_degrees)
+            .transpose()?;
+        let options = self.options.options()?;
+        let map = load_map(&self.env, self.options.repair)?;
+        Ok((make_env_sampler(&self.sampler, &map, &options)?, normal))
+    }
 }

@@ -3,7 +3,9 @@
 
 use std::path::PathBuf;
 
-use acdf::env_registry::{report_env_samplers, EnvSamplerSpec};
+use acdf::env_registry::{
+    env_sampler_help, env_sampler_long_help, report_env_samplers, EnvSamplerSpec,
+};
 use acdf::env_report::{
     env_figure, format_env_table, report_map, EnvReportConfig, ReportedSampler,
 };
@@ -24,8 +26,8 @@ pub struct Args {
     #[arg(
         long = "sampler",
         value_name = "NAME",
-        help = crate::env_common::sampler_help(),
-        long_help = crate::env_common::sampler_long_help()
+        help = env_sampler_help(),
+        long_help = env_sampler_long_help()
     )]
     samplers: Vec<String>,
     #[command(flatten)]
