@@ -8,8 +8,8 @@ use std::sync::Arc;
 
 use acdf_adaptive::{adaptive_env_sampler, oriented_env_sampler, AdaptiveBuilder};
 use acdf_conformance::{
-    assert_rejected, check_env_family, check_env_sampler, env_test_maps, env_test_normals, Check, EnvConfig,
-    EnvTarget, Report,
+    assert_rejected, check_env_family, check_env_sampler, env_test_maps, env_test_normals, Check,
+    EnvConfig, EnvTarget, Report,
 };
 use acdf_core::{SphereSample, SphereSampler, Vec2, Vec3};
 use acdf_lights::{EnvMap, LatLongSampler, NormalGrid, TableKind};
@@ -191,7 +191,6 @@ fn mutant_config() -> EnvConfig {
         ..EnvConfig::default()
     }
 }
-
 
 /// The table built from the luminance alone, without the texels' solid
 /// angle (the classic "missing sin θ"): the sampler is consistent with its

@@ -5,7 +5,10 @@
 //! the estimator efficiency of a sampler under an environment light
 //! ([`efficiency`]), the per-material results table ([`report`]), the
 //! tolerance sweep of the adaptive simplifiers ([`sweep`]), the sphere
-//! renderer ([`render`]) and the figures ([`plot`]).
+//! renderer ([`render`]) and the figures ([`plot`]). Environment maps get
+//! the same: a registry of environment samplers by name ([`env_registry`])
+//! and the storage and irradiance-variance report of `acdf env-report`
+//! ([`env_report`]).
 //!
 //! Estimator efficiency is 1 / (V · t): V the variance of the one-sample
 //! estimator of reflected luminance under the procedural sky, averaged over
