@@ -10,7 +10,7 @@ use acdf_conformance::reference::{PiecewiseConstant1D, PiecewiseConstant2D};
 use acdf_conformance::samplers::{TabulatedSampler, TiltedLobeSampler};
 use acdf_conformance::{
     assert_rejected, brdfs, check_distribution_1d, check_distribution_2d, check_sampler,
-    check_sampler_family, Check, DistributionConfig, Report, SamplerConfig,
+    check_sampler_family, Check, DistributionConfig, SamplerConfig,
 };
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{
