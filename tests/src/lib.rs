@@ -115,7 +115,7 @@
 //! Panics anywhere are caught and reported as [`Check::Panic`].
 //!
 //! Environment samplers (directions over the whole sphere for a lat-long
-//! map and a shading normal) have a battery of their own, [`env`]:
+//! map and a shading normal) have a battery of their own, [`env`](mod@env):
 //! [`check_env_family`] over the maps of [`env_test_maps`] (a structured
 //! sky and the extremes) and the normals of [`env_test_normals`].
 

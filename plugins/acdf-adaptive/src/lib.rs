@@ -17,7 +17,7 @@
 //!   [`AdaptiveCdf2D`] per outgoing-direction slice, built by
 //!   [`AdaptiveBuilder`];
 //!   [`average_resolution`] reports the mean kept vertices as in the paper;
-//! - [`env`]: the same distributions over the texels of an environment map
+//! - [`env`](mod@env): the same distributions over the texels of an environment map
 //!   ([`AdaptiveEnvSampler`]) and per cell of shading normals
 //!   ([`OrientedEnvSampler`]).
 //!
