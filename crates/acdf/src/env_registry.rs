@@ -22,7 +22,7 @@ use acdf_uniform::{uniform_env_sampler, UniformEnvSampler};
 
 use crate::error::{Error, Result};
 use crate::registry::format_long_help;
-use crate::spec::{parse_family_name, SimplifierName};
+use crate::spec::{parse_angles_degrees, parse_family_name, SimplifierName};
 
 /// Options of the environment samplers.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -404,23 +404,7 @@ pub fn make_env_sampler_spec(
 /// (θ in [0, 180] degrees from `+z`, φ from `+x` towards `+y`), the
 /// convention of environment maps ([`acdf_lights::latlong`]).
 pub fn parse_sphere_direction_degrees(s: &str) -> Result<Vec3> {
-    let bad = |reason: &str| Error::InvalidArgument {
-        what: "direction",
-        value: s.to_string(),
-        reason: reason.to_string(),
-    };
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    if parts.len() != 2 {
-        return Err(bad("expected THETA_DEG,PHI_DEG"));
-    }
-    let theta: f64 = parts[0].parse().map_err(|_| bad("theta is not a number"))?;
-    let phi: f64 = parts[1].parse().map_err(|_| bad("phi is not a number"))?;
-    if !theta.is_finite() || !phi.is_finite() {
-        return Err(bad("angles must be finite"));
-    }
-    if !(0.0..=180.0).contains(&theta) {
-        return Err(bad("theta must be in [0, 180] degrees"));
-    }
+    let (theta, phi) = parse_angles_degrees(s, 0.0..=180.0, "[0, 180] degrees")?;
     let (t, p) = (theta.to_radians(), phi.to_radians());
     Ok(Vec3::new(
         (t.sin() * p.cos()) as f32,

@@ -261,6 +261,20 @@ impl fmt::Display for SamplerSpec {
 
 /// Parse `THETA_DEG,PHI_DEG` into a unit direction of the local frame.
 pub fn parse_direction_degrees(s: &str) -> Result<acdf_core::Vec3, Error> {
+    let (theta, phi) = parse_angles_degrees(s, 0.0..90.0, "[0, 90) degrees (above the horizon)")?;
+    Ok(acdf_core::geometry::spherical_direction(
+        (theta as f32).to_radians(),
+        (phi as f32).to_radians(),
+    ))
+}
+
+/// The finite angles (θ, φ) of `THETA_DEG,PHI_DEG`, θ in `range` (which
+/// `range_text` describes); anything else is [`Error::InvalidArgument`].
+pub(crate) fn parse_angles_degrees(
+    s: &str,
+    range: impl std::ops::RangeBounds<f64>,
+    range_text: &str,
+) -> Result<(f64, f64), Error> {
     let bad = |reason: &str| Error::InvalidArgument {
         what: "direction",
         value: s.to_string(),
@@ -270,18 +284,15 @@ pub fn parse_direction_degrees(s: &str) -> Result<acdf_core::Vec3, Error> {
     if parts.len() != 2 {
         return Err(bad("expected THETA_DEG,PHI_DEG"));
     }
-    let theta: f32 = parts[0].parse().map_err(|_| bad("theta is not a number"))?;
-    let phi: f32 = parts[1].parse().map_err(|_| bad("phi is not a number"))?;
+    let theta: f64 = parts[0].parse().map_err(|_| bad("theta is not a number"))?;
+    let phi: f64 = parts[1].parse().map_err(|_| bad("phi is not a number"))?;
     if !theta.is_finite() || !phi.is_finite() {
         return Err(bad("angles must be finite"));
     }
-    if !(0.0..90.0).contains(&theta) {
-        return Err(bad("theta must be in [0, 90) degrees (above the horizon)"));
+    if !range.contains(&theta) {
+        return Err(bad(&format!("theta must be in {range_text}")));
     }
-    Ok(acdf_core::geometry::spherical_direction(
-        theta.to_radians(),
-        phi.to_radians(),
-    ))
+    Ok((theta, phi))
 }
 
 #[cfg(test)]

@@ -4,35 +4,14 @@
 //! map, NaN texels, an unknown sampler. Each gives one line on stderr and a
 //! non-zero exit, no panic and nothing NaN on stdout.
 
-use std::io::Write;
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
+
+use common::{acdf, acdf_stdin};
 
 use acdf::env_registry::{env_sampler_names, ENV_SAMPLERS};
-
-fn acdf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_acdf"))
-        .args(args)
-        .output()
-        .expect("the acdf binary runs")
-}
-
-fn acdf_stdin(args: &[&str], input: &str) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_acdf"))
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("the acdf binary runs");
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.as_bytes())
-        .unwrap();
-    child.wait_with_output().unwrap()
-}
 
 fn text(b: &[u8]) -> String {
     String::from_utf8(b.to_vec()).unwrap()
