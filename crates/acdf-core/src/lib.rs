@@ -11,7 +11,8 @@
 //! that detects the CPU features they choose their code by (`cpu`);
 //! and the one error type. It holds no sampler and no data format, so that
 //! plug-ins and material readers depend on this small crate (the tabulated
-//! plug-ins also on `acdf-tabulated`) and never on each other.
+//! plug-ins also on `acdf-tabulated`, the environment samplers on
+//! `acdf-lights`) and never on each other.
 //!
 //! Conventions used throughout acdf:
 //! - directions live in the local shading frame, `z` along the normal, and both
