@@ -98,9 +98,9 @@ impl Default for EnvConfig {
 
 /// The maps of the battery, small so that it runs in seconds: a structured
 /// 64 × 32 sky (a gradient, a bright spot across the φ seam, a dim ground),
-/// and the extremes: one bright texel on black, a constant map, a map with
-/// zero rows (the first four, two in the middle and the last), 1 × 1 and
-/// 2 × 1.
+/// and the extremes: one bright texel on black, a constant map, a black
+/// map (whose samplers draw uniform directions), a map with zero rows (the
+/// first four, two in the middle and the last), 1 × 1 and 2 × 1.
 pub fn env_test_maps() -> Vec<(&'static str, Arc<EnvMap>)> {
     use acdf_core::Rgb;
     let map = |w, h, f: &dyn Fn(usize, usize) -> Rgb| {
@@ -130,6 +130,7 @@ pub fn env_test_maps() -> Vec<(&'static str, Arc<EnvMap>)> {
             }),
         ),
         ("constant", map(32, 16, &|_, _| Rgb::splat(0.7))),
+        ("black", map(32, 16, &|_, _| Rgb::ZERO)),
         (
             "zero-rows",
             map(32, 16, &|k, j| {

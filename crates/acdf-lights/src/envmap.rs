@@ -175,7 +175,7 @@ impl EnvMap {
     }
 
     /// Whether every texel is black: such a map emits nothing, and its
-    /// samplers fall back to uniform directions.
+    /// samplers fall back to uniform directions over the sphere.
     pub fn is_black(&self) -> bool {
         self.luminance.iter().all(|&y| y <= 0.0)
     }

@@ -18,7 +18,8 @@ use crate::envmap::EnvMap;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TableKind {
     /// Y(L) · Ω: directions in proportion to the luminance arriving from
-    /// them; the classic environment sampling density.
+    /// them; the classic environment sampling density. A black map gives
+    /// Ω alone, uniform directions.
     Luminance,
     /// max(0, Y(L) − Ȳ) · Ω with Ȳ the mean luminance over the sphere: the
     /// compensated density for multiple importance sampling, which leaves
@@ -39,9 +40,13 @@ impl TableKind {
     }
 }
 
-/// Y · Ω per texel.
+/// Y · Ω per texel; Ω alone (uniform directions) for a black map.
 pub fn luminance_table(map: &EnvMap) -> Vec<f32> {
-    weighted(map, |y, _| y)
+    if map.is_black() {
+        weighted(map, |_, _| 1.0)
+    } else {
+        weighted(map, |y, _| y)
+    }
 }
 
 /// max(0, Y − Ȳ) · Ω per texel, Ȳ = ∫ Y dω / 4π; Ω alone when that is 0
@@ -147,6 +152,10 @@ mod tests {
             .all(|(i, &v)| (v > 0.0) == (i % 8 == 3)));
         let flat = EnvMap::from_fn(8, 4, |_, _| Rgb::ONE).unwrap();
         assert_eq!(compensated_table(&flat), luminance_table(&flat));
+        // A black map samples uniform directions.
+        let black = EnvMap::from_fn(8, 4, |_, _| Rgb::ZERO).unwrap();
+        assert_eq!(luminance_table(&black), luminance_table(&flat));
+        assert_eq!(compensated_table(&black), luminance_table(&flat));
     }
 
     #[test]
