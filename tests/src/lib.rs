@@ -113,6 +113,11 @@
 //! domain. All-zero tables: uniform pdf 1 and `integral() == 0`. Bad tables:
 //! the `acdf_core::Error` variant (and index) stated in [`ExpectedError`].
 //! Panics anywhere are caught and reported as [`Check::Panic`].
+//!
+//! Environment samplers (directions over the whole sphere for a lat-long
+//! map and a shading normal) have a battery of their own, [`env`](mod@env):
+//! [`check_env_family`] over the maps of [`env_test_maps`] (a structured
+//! sky and the extremes) and the normals of [`env_test_normals`].
 
 /// Re-exported so that the macros name the same traits as the caller.
 pub use acdf_core;
@@ -120,6 +125,7 @@ pub use acdf_core;
 pub mod brdfs;
 pub mod chi2;
 pub mod distribution_checks;
+pub mod env;
 pub mod quadrature;
 pub mod reference;
 pub mod report;
@@ -130,7 +136,10 @@ pub use distribution_checks::{
     check_distribution_1d, check_distribution_2d, tables_1d, tables_2d, DistributionConfig, Expect,
     ExpectedError, Table1D, Table2D,
 };
-pub use report::{Check, ChiSquareLine, Failure, Report};
+pub use env::{
+    check_env_family, check_env_sampler, env_test_maps, env_test_normals, EnvConfig, EnvTarget,
+};
+pub use report::{assert_rejected, Check, ChiSquareLine, Failure, Report};
 pub use sampler_checks::{check_sampler, check_sampler_family, SamplerConfig, EXTREME_U};
 
 /// One `#[test]` running [`check_sampler_family`] on `build` with `brdfs`

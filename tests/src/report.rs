@@ -37,6 +37,10 @@ pub enum Check {
     /// ([`missed_share`](acdf_core::missed_share)): light the
     /// sampler can never draw.
     Support,
+    /// An environment sampler's density does not follow the function its
+    /// table is built for: the chi-square divergence of that function from
+    /// the density exceeds the configured bound.
+    Target,
     /// The code under test panicked.
     Panic,
 }
@@ -183,4 +187,19 @@ impl fmt::Display for Report {
         }
         Ok(())
     }
+}
+
+/// Print the report and assert that the battery rejected what it checked
+/// (a deliberately broken sampler or distribution) through `expected`;
+/// other checks may fail too.
+pub fn assert_rejected(report: &Report, expected: Check) {
+    report.print();
+    assert!(
+        !report.passed(),
+        "the battery accepted a broken sampler:\n{report}"
+    );
+    assert!(
+        report.failed(expected),
+        "rejected, but not by {expected:?}:\n{report}"
+    );
 }

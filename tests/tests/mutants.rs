@@ -9,8 +9,8 @@
 use acdf_conformance::reference::{PiecewiseConstant1D, PiecewiseConstant2D};
 use acdf_conformance::samplers::{TabulatedSampler, TiltedLobeSampler};
 use acdf_conformance::{
-    brdfs, check_distribution_1d, check_distribution_2d, check_sampler, check_sampler_family,
-    Check, DistributionConfig, Report, SamplerConfig,
+    assert_rejected, brdfs, check_distribution_1d, check_distribution_2d, check_sampler,
+    check_sampler_family, Check, DistributionConfig, SamplerConfig,
 };
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{
@@ -33,20 +33,6 @@ fn distribution_config() -> DistributionConfig {
         samples: 250_000,
         ..DistributionConfig::default()
     }
-}
-
-/// Print the report and assert that the battery rejected the mutant through
-/// `expected` (other checks may fail too).
-fn assert_rejected(report: &Report, expected: Check) {
-    report.print();
-    assert!(
-        !report.passed(),
-        "the battery accepted a broken sampler:\n{report}"
-    );
-    assert!(
-        report.failed(expected),
-        "rejected, but not by {expected:?}:\n{report}"
-    );
 }
 
 // ---------------------------------------------------------------- pdf × 1.05

@@ -1,12 +1,14 @@
 //! `acdf-core` is the vocabulary every other acdf crate speaks: the traits for
 //! sampling distributions over the unit interval and square (`Distribution1D`,
 //! `Distribution2D`), for BRDF samplers (`BxdfSampler`) and BRDF sources
-//! (`Brdf`); the geometry of the local shading frame, spherical and
-//! Rusinkiewicz half/difference coordinates; the warps shared by several
-//! samplers; the deterministic quadrature over the incident hemisphere
-//! that measures a sampler without drawing from it (`quadrature`: the
-//! light it misses, the relative variance of its estimator, its largest
-//! weight); the hot-path helpers every sampler uses (polynomial
+//! (`Brdf`), for lights at infinity and the samplers of directions over the
+//! whole sphere that serve them (`Light`, `SphereSampler`); the geometry
+//! of the local shading frame, spherical and Rusinkiewicz half/difference
+//! coordinates; the warps shared by several samplers; the deterministic
+//! quadrature over the incident hemisphere that measures a sampler
+//! without drawing from it (`quadrature`: the light it misses, the
+//! relative variance of its estimator, its largest weight); the hot-path
+//! helpers every sampler uses (polynomial
 //! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
 //! their SIMD-lane form for batches in `search::lanes`), with the one place
 //! that detects the CPU features they choose their code by (`cpu`);
@@ -14,7 +16,8 @@
 //! of input files (`fsio`), with the memory limit that every allocation
 //! sized by input is checked against (`limits`); and the one error type. It holds no sampler and no data format, so that
 //! plug-ins and material readers depend on this small crate (the tabulated
-//! plug-ins also on `acdf-tabulated`) and never on each other.
+//! plug-ins also on `acdf-tabulated`, the environment samplers on
+//! `acdf-lights`) and never on each other.
 //!
 //! Conventions used throughout acdf:
 //! - directions live in the local shading frame, `z` along the normal, and both
@@ -34,6 +37,7 @@ pub mod error;
 pub mod fast;
 pub mod fsio;
 pub mod geometry;
+pub mod light;
 pub mod limits;
 pub mod quadrature;
 pub mod sampler;
@@ -47,6 +51,7 @@ pub use distribution::{
 };
 pub use error::{Error, Result};
 pub use geometry::{Frame, HalfDiff};
+pub use light::{usable_normal, Light, LightSample, SphereSample, SphereSampler};
 pub use quadrature::{missed_share, HemisphereGrid, Integrand, MissedShare, Moments};
 pub use sampler::{is_valid_outgoing, BxdfSample, BxdfSampler};
 

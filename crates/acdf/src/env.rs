@@ -126,25 +126,17 @@ impl EnvMap {
         })
     }
 
-    /// Read an `.exr` or `.hdr` file (any format the `image` crate decodes).
+    /// Read a lat-long `.exr` or `.hdr` file through
+    /// [`acdf_lights::EnvMap::open_repaired`]: the same decoding and
+    /// checks as the environment samplers' maps (typed errors for files
+    /// that cannot be decoded or are not twice as wide as high), with NaN,
+    /// infinite and negative values set to 0 as [`from_texels`](Self::from_texels)
+    /// does. The texels are read in their own convention and looked up in
+    /// this type's (see the type's documentation).
     pub fn open(path: &Path) -> Result<EnvMap> {
-        if !path.exists() {
-            return Err(Error::io(
-                path,
-                std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
-            ));
-        }
-        let img = image::open(path).map_err(|e| Error::Image {
-            path: path.to_path_buf(),
-            message: e.to_string().replace('\n', " "),
-        })?;
-        let rgb = img.to_rgb32f();
-        let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-        let texels = rgb
-            .pixels()
-            .map(|p| Vec3::new(p.0[0], p.0[1], p.0[2]))
-            .collect();
-        EnvMap::from_texels(w, h, texels)
+        let (map, _) = acdf_lights::EnvMap::open_repaired(path)?;
+        let (w, h) = map.size();
+        EnvMap::from_texels(w, h, map.texels().to_vec())
     }
 
     /// Width and height in texels.

@@ -115,6 +115,10 @@ pub enum Error {
     #[error("{0}")]
     Core(#[from] acdf_core::Error),
 
+    /// An environment map could not be read or is not a usable map.
+    #[error("{0}")]
+    Env(#[from] acdf_lights::EnvError),
+
     /// Serialising results.
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),

@@ -5,7 +5,10 @@
 //! the estimator efficiency of a sampler under an environment light
 //! ([`efficiency`]), the per-material results table ([`report`]), the
 //! tolerance sweep of the adaptive simplifiers ([`sweep`]), the sphere
-//! renderer ([`render`]) and the figures ([`plot`]).
+//! renderer ([`render`]) and the figures ([`plot`]). Environment maps get
+//! the same: a registry of environment samplers by name ([`env_registry`])
+//! and the storage and irradiance-variance report of `acdf env-report`
+//! ([`env_report`]).
 //!
 //! Estimator efficiency is 1 / (r · t_s): r the relative variance of the
 //! one-sample estimator of reflected luminance under the procedural sky,
@@ -53,12 +56,15 @@
 
 pub use acdf_core as core;
 pub use acdf_cosine as cosine;
+pub use acdf_lights as lights;
 pub use acdf_materials as materials;
 pub use acdf_tabulated as tabulated;
 pub use acdf_uniform as uniform;
 
 pub mod efficiency;
 pub mod env;
+pub mod env_registry;
+pub mod env_report;
 pub mod error;
 pub mod material;
 pub mod plot;

@@ -279,6 +279,20 @@ pub fn write_png(path: &Path, image: &image::RgbImage) -> Result<()> {
     })?)
 }
 
+/// The figure as SVG text, 700 × 560 pixels per panel, for a caller that
+/// writes the file itself.
+pub fn figure_svg(figure: &Figure) -> Result<String> {
+    ensure_font()?;
+    let size = (700 * figure.panels.len().max(1) as u32, 560u32);
+    let mut svg = String::new();
+    draw_figure(
+        SVGBackend::with_string(&mut svg, size).into_drawing_area(),
+        figure,
+    )
+    .map_err(|e| plot_error(Path::new("svg"), e))?;
+    Ok(svg)
+}
+
 /// Put images side by side, left to right, with a caption strip above each.
 pub fn side_by_side(images: &[(String, image::RgbImage)]) -> Result<image::RgbImage> {
     ensure_font()?;

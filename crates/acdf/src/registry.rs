@@ -380,7 +380,12 @@ pub fn sampler_help(saved_only: bool) -> String {
 /// The long help of a `--sampler` option (`--help`): one name per line with
 /// its description, from the tables.
 pub fn sampler_long_help(saved_only: bool) -> String {
-    let named = named(saved_only);
+    format_long_help(&named(saved_only))
+}
+
+/// `One of:` and one `name  description` line per name, the names padded to
+/// the longest: the long help of a `--sampler` option.
+pub(crate) fn format_long_help(named: &[(String, String)]) -> String {
     let width = named.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
     let lines: Vec<String> = named
         .iter()

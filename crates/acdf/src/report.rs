@@ -436,7 +436,7 @@ pub const MC_ERROR_FACTOR: f64 = 3.0;
 
 /// A Markdown table: the first `text_columns` columns left-aligned, the
 /// others (numbers) right-aligned, every column padded to its widest cell.
-fn markdown(header: &[String], body: &[Vec<String>], text_columns: usize) -> String {
+pub(crate) fn markdown(header: &[String], body: &[Vec<String>], text_columns: usize) -> String {
     let mut widths: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
     for row in body {
         for (w, cell) in widths.iter_mut().zip(row) {

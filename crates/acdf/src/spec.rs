@@ -217,26 +217,40 @@ impl FromStr for SamplerSpec {
     /// A family's name, or for a family with simplifiers `FAMILY` (its first
     /// simplifier) or `FAMILY:SIMPLIFIER`.
     fn from_str(s: &str) -> Result<Self, Error> {
-        let (head, tail) = match s.split_once(':') {
-            Some((h, t)) => (h, Some(t)),
-            None => (s, None),
-        };
-        let unknown = || Error::UnknownSampler {
-            name: s.to_string(),
-            known: sampler_names().join(", "),
-        };
-        let family = family(head).ok_or_else(unknown)?;
-        let simplifier = match (family.simplifiers, tail) {
-            (false, None) => None,
-            (false, Some(_)) => return Err(unknown()),
-            (true, None) => Some(SimplifierName::default_simplifier()),
-            (true, Some(t)) => Some(SimplifierName::find(t).ok_or_else(unknown)?),
-        };
-        Ok(SamplerSpec {
-            family: family.name,
-            simplifier,
-        })
+        let (family, simplifier) = parse_family_name(
+            s,
+            |head| family(head).map(|f| (f.name, f.simplifiers)),
+            sampler_names,
+        )?;
+        Ok(SamplerSpec { family, simplifier })
     }
+}
+
+/// Parse `FAMILY` or `FAMILY:SIMPLIFIER`: `family` gives a family's name
+/// and whether it takes a simplifier (the plain name then stands for the
+/// table's first); anything else is [`Error::UnknownSampler`] listing
+/// `names()`. Shared by the BRDF and the environment registries.
+pub(crate) fn parse_family_name(
+    s: &str,
+    family: impl Fn(&str) -> Option<(&'static str, bool)>,
+    names: impl Fn() -> Vec<String>,
+) -> Result<(&'static str, Option<SimplifierName>), Error> {
+    let (head, tail) = match s.split_once(':') {
+        Some((h, t)) => (h, Some(t)),
+        None => (s, None),
+    };
+    let unknown = || Error::UnknownSampler {
+        name: s.to_string(),
+        known: names().join(", "),
+    };
+    let (name, simplifiers) = family(head).ok_or_else(unknown)?;
+    let simplifier = match (simplifiers, tail) {
+        (false, None) => None,
+        (false, Some(_)) => return Err(unknown()),
+        (true, None) => Some(SimplifierName::default_simplifier()),
+        (true, Some(t)) => Some(SimplifierName::find(t).ok_or_else(unknown)?),
+    };
+    Ok((name, simplifier))
 }
 
 impl fmt::Display for SamplerSpec {
@@ -314,6 +328,20 @@ impl fmt::Display for SamplerAt {
 /// so that any θ below 90° (89.99999999 included) gives a direction above
 /// the horizon.
 pub fn parse_direction_degrees(s: &str) -> Result<acdf_core::Vec3, Error> {
+    let (theta, phi) =
+        parse_angles_degrees(s, 0.0..90.0, "[0, 90) degrees (above the horizon)")?;
+    let (sin_t, cos_t) = theta.to_radians().sin_cos();
+    let (sin_p, cos_p) = phi.to_radians().sin_cos();
+    Ok(direction_from_xyz(sin_t * cos_p, sin_t * sin_p, cos_t))
+}
+
+/// The finite angles (θ, φ) of `THETA_DEG,PHI_DEG`, θ in `range` (which
+/// `range_text` describes); anything else is [`Error::InvalidArgument`].
+pub(crate) fn parse_angles_degrees(
+    s: &str,
+    range: impl std::ops::RangeBounds<f64>,
+    range_text: &str,
+) -> Result<(f64, f64), Error> {
     let bad = |reason: String| Error::InvalidArgument {
         what: "direction",
         value: shorten(s),
@@ -341,14 +369,10 @@ pub fn parse_direction_degrees(s: &str) -> Result<acdf_core::Vec3, Error> {
     };
     let theta = number("theta", parts[0])?;
     let phi = number("phi", parts[1])?;
-    if !(0.0..90.0).contains(&theta) {
-        return Err(bad(format!(
-            "theta {theta} is not in [0, 90) degrees (above the horizon)"
-        )));
+    if !range.contains(&theta) {
+        return Err(bad(format!("theta {theta} is not in {range_text}")));
     }
-    let (sin_t, cos_t) = theta.to_radians().sin_cos();
-    let (sin_p, cos_p) = phi.to_radians().sin_cos();
-    Ok(direction_from_xyz(sin_t * cos_p, sin_t * sin_p, cos_t))
+    Ok((theta, phi))
 }
 
 /// The unit direction along (x, y, z), computed in `f64` before it is

@@ -2,33 +2,12 @@
 //! material with small sizes, checking what it prints and writes, and the
 //! error paths (one line on stderr, non-zero exit, no panic).
 
-use std::io::Write;
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 
-fn acdf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_acdf"))
-        .args(args)
-        .output()
-        .expect("the acdf binary runs")
-}
-
-fn acdf_stdin(args: &[&str], input: &str) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_acdf"))
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("the acdf binary runs");
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.as_bytes())
-        .unwrap();
-    child.wait_with_output().unwrap()
-}
+use common::{acdf, acdf_stdin};
 
 fn stdout(o: &Output) -> String {
     String::from_utf8(o.stdout.clone()).unwrap()

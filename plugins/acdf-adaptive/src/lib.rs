@@ -16,7 +16,10 @@
 //!   `acdf-tabulated`'s generic `TabulatedBrdfSampler` with an
 //!   [`AdaptiveCdf2D`] per outgoing-direction slice, built by
 //!   [`AdaptiveBuilder`];
-//!   [`average_resolution`] reports the mean kept vertices as in the paper.
+//!   [`average_resolution`] reports the mean kept vertices as in the paper;
+//! - [`env`](mod@env): the same distributions over the texels of an environment map
+//!   ([`AdaptiveEnvSampler`]) and per cell of shading normals
+//!   ([`OrientedEnvSampler`]).
 //!
 //! # Tolerances and how the defaults were chosen
 //!
@@ -57,11 +60,13 @@
 
 mod curve;
 pub mod dist;
+pub mod env;
 pub mod persist;
 pub mod sampler;
 pub mod simplify;
 
 pub use dist::{AdaptiveCdf1D, AdaptiveCdf2D};
+pub use env::{adaptive_env_sampler, oriented_env_sampler, AdaptiveEnvSampler, OrientedEnvSampler};
 pub use sampler::{adaptive_sampler, average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 pub use simplify::{
     chi_square_error, perpendicular_error, simplifier_by_name, vertical_error, ChiSquareOptimal,

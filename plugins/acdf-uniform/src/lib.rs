@@ -9,6 +9,8 @@
 //! - [`PiecewiseConstant1D`], [`PiecewiseConstant2D`]: the distributions.
 //! - [`PiecewiseConstantBuilder`], [`UniformBrdfSampler`]: the sampler
 //!   family, named `uniform`.
+//! - [`UniformEnvSampler`]: the same tables over the texels of an
+//!   environment map, the classic environment sampler (`env` module).
 
 // `!(x > 0.0)` is how this crate says "not positive, or NaN": the negated
 // comparison is the point, since NaN must take the rejecting branch.
@@ -17,6 +19,8 @@
 
 pub mod builder;
 pub mod distribution;
+pub mod env;
 
 pub use builder::{PiecewiseConstantBuilder, UniformBrdfSampler};
 pub use distribution::{PiecewiseConstant1D, PiecewiseConstant2D};
+pub use env::{uniform_env_sampler, UniformEnvSampler};

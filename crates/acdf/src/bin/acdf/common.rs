@@ -84,20 +84,25 @@ impl TableArgs {
             }
             (None, false) => Resolution::ISOTROPIC,
         };
-        if let Some(t) = self.tolerance {
-            if t.is_nan() || t < 0.0 {
-                return Err(Error::InvalidArgument {
-                    what: "tolerance",
-                    value: t.to_string(),
-                    reason: "must be a non-negative number".into(),
-                });
-            }
-        }
+        validate_tolerance(self.tolerance)?;
         Ok(SamplerOptions {
             resolution,
             tolerance: self.tolerance,
             cosine_mix: self.cosine_mix.unwrap_or(0.0),
         })
+    }
+}
+
+/// A simplifier tolerance from the command line: none, or a non-negative
+/// number.
+pub fn validate_tolerance(tolerance: Option<f64>) -> Result<()> {
+    match tolerance {
+        Some(t) if t.is_nan() || t < 0.0 => Err(Error::InvalidArgument {
+            what: "tolerance",
+            value: t.to_string(),
+            reason: "must be a non-negative number".into(),
+        }),
+        _ => Ok(()),
     }
 }
 
@@ -315,8 +320,8 @@ pub const MAX_LINE_BYTES: usize = 4096;
 
 /// Read `x,y,z` lines from stdin and call `each` with the unit direction of
 /// each (zero if it has no length), by [`parse_direction_line`]: blank
-/// lines and `#` comments are skipped; a header line starting `wi_x` (as
-/// `acdf sample` writes) sets how many fields the lines after it have,
+/// lines and `#` comments are skipped; a header line starting `wi_x` or `x,`
+/// (as `acdf sample` and `acdf env-sample` write) sets how many fields the lines after it have,
 /// otherwise every line has exactly three. A line longer than
 /// [`MAX_LINE_BYTES`], or not UTF-8, is an error naming its number.
 pub fn for_each_direction(mut each: impl FnMut(Vec3) -> Result<()>) -> Result<()> {
@@ -341,7 +346,8 @@ pub fn for_each_direction(mut each: impl FnMut(Vec3) -> Result<()>) -> Result<()
         }
         let text =
             std::str::from_utf8(&buffer).map_err(|_| error("is not UTF-8 text".to_string()))?;
-        if text.trim_start().starts_with("wi_x") {
+        let head = text.trim_start();
+        if head.starts_with("wi_x") || head.starts_with("x,") {
             columns = text.split(',').count().max(DIRECTION_FIELDS);
             continue;
         }

@@ -1,6 +1,7 @@
 //! The `acdf` command: draw samples, evaluate densities and BRDFs, bake
 //! Neural-BRDF networks into MERL files, and run the experiments (results
-//! table, tolerance sweep, sphere renders). Every failure is one line on
+//! table, tolerance sweep, sphere renders); the same for environment maps
+//! (`env-sample`, `env-pdf`, `env-report`). Every failure is one line on
 //! stderr and exit status 1.
 //!
 //! One module per subcommand, each with its arguments (`Args`) and its
@@ -56,6 +57,10 @@ mod bake;
 mod bench;
 mod build;
 mod common;
+mod env_common;
+mod env_pdf;
+mod env_report;
+mod env_sample;
 mod eval;
 mod pdf;
 mod render;
@@ -146,6 +151,15 @@ enum Command {
     /// the BRDF samplers, and the build time of the 4D tables; a table on
     /// stdout, optionally JSON.
     Bench(bench::Args),
+    /// Draw directions towards an environment map with an environment
+    /// sampler; CSV on stdout (`x,y,z,pdf`, a failed draw is `0,0,0,0`).
+    EnvSample(env_sample::Args),
+    /// Print an environment sampler's solid-angle pdf for each `x,y,z` line
+    /// of stdin.
+    EnvPdf(env_pdf::Args),
+    /// Storage, irradiance variance, time and efficiency of the environment
+    /// samplers on each map: a table, optionally JSON and an SVG plot.
+    EnvReport(env_report::Args),
 }
 
 fn main() -> ExitCode {
@@ -195,5 +209,8 @@ fn run(cli: Cli) -> Result<()> {
         Command::Survey(a) => survey::run(a),
         Command::Render(a) => render::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::EnvSample(a) => env_sample::run(a),
+        Command::EnvPdf(a) => env_pdf::run(a),
+        Command::EnvReport(a) => env_report::run(a),
     }
 }

@@ -1,0 +1,377 @@
+//! Environment maps: a latitude-longitude HDR image read from a Radiance
+//! `.hdr` or OpenEXR file, looked up by direction.
+
+use std::path::Path;
+
+use acdf_core::{luminance, Rgb, Vec2, Vec3};
+
+use crate::error::{EnvError, Result};
+use crate::latlong::LatLong;
+
+/// A latitude-longitude environment map in linear Rec. 709 RGB, with the
+/// convention of [`latlong`](crate::latlong): `+z` up, row 0 at the zenith,
+/// column 0 starting at φ = 0 (the `+x` axis), φ growing towards `+y`.
+///
+/// Every texel is finite and non-negative: the constructors reject NaN,
+/// infinite and negative values ([`EnvError::NonFinite`],
+/// [`EnvError::Negative`]); [`EnvMap::open_repaired`] and
+/// [`EnvMap::from_rgb_repaired`] set them to 0 instead and count them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvMap {
+    grid: LatLong,
+    rgb: Vec<Rgb>,
+    luminance: Vec<f32>,
+}
+
+/// What [`EnvMap::from_rgb_repaired`] replaced by 0, in channel values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Repairs {
+    pub non_finite: usize,
+    pub negative: usize,
+}
+
+impl Repairs {
+    /// Whether nothing was replaced.
+    pub fn is_empty(&self) -> bool {
+        self.non_finite == 0 && self.negative == 0
+    }
+}
+
+/// Check the dimensions of a lat-long map: at least one texel, twice as
+/// wide as high (or 1x1), and `len` texels.
+fn check_size(width: usize, height: usize, len: usize) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(EnvError::Empty { width, height });
+    }
+    if width != 2 * height && !(width == 1 && height == 1) {
+        return Err(EnvError::NotLatLong { width, height });
+    }
+    let expected = width
+        .checked_mul(height)
+        .ok_or(EnvError::NotLatLong { width, height })?;
+    if len != expected {
+        return Err(EnvError::SizeMismatch {
+            width,
+            height,
+            expected,
+            got: len,
+        });
+    }
+    Ok(())
+}
+
+impl EnvMap {
+    /// A map from row-major texels (`height` rows of `width`), which must
+    /// be twice as wide as high (or 1x1) and finite and non-negative in
+    /// every channel.
+    pub fn from_rgb(width: usize, height: usize, texels: Vec<Rgb>) -> Result<EnvMap> {
+        check_size(width, height, texels.len())?;
+        let channel = |t: &Rgb| t.to_array();
+        let non_finite = texels
+            .iter()
+            .flat_map(channel)
+            .filter(|c| !c.is_finite())
+            .count();
+        if let Some(i) = texels.iter().position(|t| !t.is_finite()) {
+            let value = channel(&texels[i])
+                .into_iter()
+                .find(|c| !c.is_finite())
+                .unwrap_or(f32::NAN);
+            return Err(EnvError::NonFinite {
+                column: i % width,
+                row: i / width,
+                value,
+                count: non_finite,
+            });
+        }
+        let negative = texels.iter().flat_map(channel).filter(|&c| c < 0.0).count();
+        if let Some(i) = texels.iter().position(|t| t.min_element() < 0.0) {
+            return Err(EnvError::Negative {
+                column: i % width,
+                row: i / width,
+                value: texels[i].min_element(),
+                count: negative,
+            });
+        }
+        Ok(Self::from_checked(width, height, texels))
+    }
+
+    /// [`from_rgb`](Self::from_rgb), but NaN, infinite and negative channel
+    /// values become 0 (counted in the returned [`Repairs`]) instead of
+    /// errors. Wrong dimensions are still errors.
+    pub fn from_rgb_repaired(
+        width: usize,
+        height: usize,
+        mut texels: Vec<Rgb>,
+    ) -> Result<(EnvMap, Repairs)> {
+        check_size(width, height, texels.len())?;
+        let mut repairs = Repairs::default();
+        for t in &mut texels {
+            for c in t.as_mut() {
+                if !c.is_finite() {
+                    repairs.non_finite += 1;
+                    *c = 0.0;
+                } else if *c < 0.0 {
+                    repairs.negative += 1;
+                    *c = 0.0;
+                }
+            }
+        }
+        Ok((Self::from_checked(width, height, texels), repairs))
+    }
+
+    fn from_checked(width: usize, height: usize, rgb: Vec<Rgb>) -> EnvMap {
+        let luminance = rgb.iter().map(|&c| luminance(c).max(0.0)).collect();
+        EnvMap {
+            grid: LatLong::new(width, height),
+            rgb,
+            luminance,
+        }
+    }
+
+    /// A map whose texel (column, row) is `f(column, row)`, checked as
+    /// [`from_rgb`](Self::from_rgb) checks it.
+    pub fn from_fn(width: usize, height: usize, f: impl Fn(usize, usize) -> Rgb) -> Result<EnvMap> {
+        let texels = (0..height)
+            .flat_map(|j| (0..width).map(move |k| (k, j)))
+            .map(|(k, j)| f(k, j))
+            .collect();
+        Self::from_rgb(width, height, texels)
+    }
+
+    /// Read a Radiance `.hdr` or OpenEXR file (the format is recognised
+    /// from the content, then the extension) and check it as
+    /// [`from_rgb`](Self::from_rgb) does.
+    pub fn open(path: &Path) -> Result<EnvMap> {
+        let (w, h, texels) = read_rgb(path)?;
+        Self::from_rgb(w, h, texels)
+    }
+
+    /// [`open`](Self::open), with NaN, infinite and negative channel values
+    /// set to 0 as [`from_rgb_repaired`](Self::from_rgb_repaired) does.
+    pub fn open_repaired(path: &Path) -> Result<(EnvMap, Repairs)> {
+        let (w, h, texels) = read_rgb(path)?;
+        Self::from_rgb_repaired(w, h, texels)
+    }
+
+    /// Width and height in texels.
+    pub fn size(&self) -> (usize, usize) {
+        self.grid.size()
+    }
+
+    /// The texel grid and its mapping to directions.
+    pub fn grid(&self) -> &LatLong {
+        &self.grid
+    }
+
+    /// The texels, row-major.
+    pub fn texels(&self) -> &[Rgb] {
+        &self.rgb
+    }
+
+    /// The luminance of every texel, row-major.
+    pub fn luminance(&self) -> &[f32] {
+        &self.luminance
+    }
+
+    /// Whether every texel is black: such a map emits nothing, and its
+    /// samplers fall back to uniform directions over the sphere.
+    pub fn is_black(&self) -> bool {
+        self.luminance.iter().all(|&y| y <= 0.0)
+    }
+
+    /// ∫ Y(L(ω)) dω over the sphere (luminance, nearest-texel radiance), in
+    /// f64.
+    pub fn luminance_integral(&self) -> f64 {
+        let (w, _) = self.size();
+        self.luminance
+            .chunks_exact(w)
+            .enumerate()
+            .map(|(j, row)| {
+                self.grid.texel_solid_angle(j) * row.iter().map(|&y| y as f64).sum::<f64>()
+            })
+            .sum()
+    }
+
+    /// L(dir): the texel holding `dir` (nearest lookup). This is the
+    /// radiance the samplers' tables follow. 0 for a direction that is not
+    /// finite or has no length.
+    #[inline]
+    pub fn radiance(&self, dir: Vec3) -> Rgb {
+        match self.grid.texel_of(dir) {
+            Some((k, j)) => self.rgb[j * self.grid.size().0 + k],
+            None => Rgb::ZERO,
+        }
+    }
+
+    /// L(dir) interpolated bilinearly between the four nearest texel
+    /// centres in (φ, θ): wrapping around in φ, clamped at the top and
+    /// bottom rows. Smoother for display; its energy differs slightly from
+    /// the nearest lookup the samplers follow.
+    pub fn radiance_bilinear(&self, dir: Vec3) -> Rgb {
+        if (dir * 0.0).element_sum() != 0.0 || dir == Vec3::ZERO {
+            return Rgb::ZERO;
+        }
+        let (w, h) = self.size();
+        let d = dir.normalize();
+        let phi = acdf_core::geometry::phi(d) as f64;
+        let theta = acdf_core::geometry::theta(d) as f64;
+        let x = phi / std::f64::consts::TAU * w as f64 - 0.5;
+        let y = (theta / std::f64::consts::PI * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+        let col = |c: f64| (c as i64).rem_euclid(w as i64) as usize;
+        let (c0, c1) = (col(x0), col(x0 + 1.0));
+        let r0 = y0 as usize;
+        let r1 = (r0 + 1).min(h - 1);
+        let t = |c: usize, r: usize| self.rgb[r * w + c];
+        let top = t(c0, r0).lerp(t(c1, r0), fx);
+        let bottom = t(c0, r1).lerp(t(c1, r1), fx);
+        top.lerp(bottom, fy).max(Rgb::ZERO)
+    }
+
+    /// The texel (column, row) holding `dir`, see
+    /// [`LatLong::texel_of`].
+    pub fn texel_of(&self, dir: Vec3) -> Option<(usize, usize)> {
+        self.grid.texel_of(dir)
+    }
+
+    /// The direction of a point of the unit square, see
+    /// [`LatLong::direction_of_point`].
+    pub fn direction_of(&self, p: Vec2) -> Vec3 {
+        self.grid.direction_of_point(p).0
+    }
+}
+
+/// Decode an image file to linear RGB texels.
+fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<Rgb>)> {
+    let io = |source| EnvError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let decode = |e: image::ImageError| EnvError::Decode {
+        path: path.to_path_buf(),
+        message: e.to_string().replace('\n', " "),
+    };
+    let reader = image::ImageReader::open(path)
+        .map_err(io)?
+        .with_guessed_format()
+        .map_err(io)?;
+    let img = reader.decode().map_err(decode)?;
+    let rgb = img.to_rgb32f();
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let texels = rgb
+        .pixels()
+        .map(|p| Vec3::new(p.0[0], p.0[1], p.0[2]))
+        .collect();
+    Ok((w, h, texels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_are_checked() {
+        assert!(matches!(
+            EnvMap::from_rgb(0, 0, vec![]),
+            Err(EnvError::Empty { .. })
+        ));
+        assert!(matches!(
+            EnvMap::from_rgb(3, 2, vec![Rgb::ONE; 6]),
+            Err(EnvError::NotLatLong {
+                width: 3,
+                height: 2
+            })
+        ));
+        assert!(matches!(
+            EnvMap::from_rgb(4, 2, vec![Rgb::ONE; 7]),
+            Err(EnvError::SizeMismatch { .. })
+        ));
+        assert!(EnvMap::from_rgb(1, 1, vec![Rgb::ONE]).is_ok());
+        assert!(EnvMap::from_rgb(2, 1, vec![Rgb::ONE; 2]).is_ok());
+    }
+
+    #[test]
+    fn bad_texels_are_named_or_repaired() {
+        let mut t = vec![Rgb::ONE; 8];
+        t[5] = Rgb::new(1.0, f32::NAN, 0.0);
+        t[6] = Rgb::new(f32::INFINITY, 1.0, 0.0);
+        t[7] = Rgb::new(-1.0, 1.0, 0.0);
+        match EnvMap::from_rgb(4, 2, t.clone()) {
+            Err(
+                e @ EnvError::NonFinite {
+                    column: 1,
+                    row: 1,
+                    count: 2,
+                    ..
+                },
+            ) => assert!(e.to_string().contains("row 1"), "{e}"),
+            other => panic!("{other:?}"),
+        }
+        let mut neg = vec![Rgb::ONE; 8];
+        neg[2] = Rgb::new(0.0, -0.5, 0.0);
+        assert!(matches!(
+            EnvMap::from_rgb(4, 2, neg),
+            Err(EnvError::Negative {
+                column: 2,
+                row: 0,
+                count: 1,
+                ..
+            })
+        ));
+        let (map, repairs) = EnvMap::from_rgb_repaired(4, 2, t).unwrap();
+        assert_eq!(
+            repairs,
+            Repairs {
+                non_finite: 2,
+                negative: 1
+            }
+        );
+        assert!(map
+            .texels()
+            .iter()
+            .all(|c| c.is_finite() && c.min_element() >= 0.0));
+    }
+
+    #[test]
+    fn lookups_follow_the_convention() {
+        // Row 0 bright, row 1 dim; column 1 of row 1 red.
+        let map = EnvMap::from_fn(4, 2, |k, j| match (k, j) {
+            (_, 0) => Rgb::splat(2.0),
+            (1, 1) => Rgb::new(1.0, 0.0, 0.0),
+            _ => Rgb::splat(0.5),
+        })
+        .unwrap();
+        assert_eq!(map.radiance(Vec3::Z), Rgb::splat(2.0));
+        assert_eq!(map.radiance(-Vec3::Z), Rgb::splat(0.5));
+        // φ = 135°, below the horizon: column 1 of row 1.
+        let d = Vec3::new(-1.0, 1.0, -0.5);
+        assert_eq!(map.radiance(d), Rgb::new(1.0, 0.0, 0.0));
+        assert_eq!(map.radiance(Vec3::ZERO), Rgb::ZERO);
+        assert_eq!(map.radiance_bilinear(Vec3::NAN), Rgb::ZERO);
+        // Bilinear lookups at texel centres (in θ and φ) are the texels.
+        let c = acdf_core::geometry::spherical_direction(
+            0.75 * std::f32::consts::PI,
+            0.75 * std::f32::consts::PI,
+        );
+        assert!((map.radiance_bilinear(c) - Rgb::new(1.0, 0.0, 0.0)).length() < 1e-3);
+        let mean = map.luminance_integral() / (4.0 * std::f64::consts::PI);
+        assert!(mean > 0.5 && mean < 2.0);
+    }
+
+    #[test]
+    fn files_that_are_not_maps_are_typed_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("none.hdr");
+        assert!(matches!(EnvMap::open(&missing), Err(EnvError::Io { .. })));
+        let junk = dir.path().join("junk.hdr");
+        std::fs::write(
+            &junk,
+            b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n\x02\x02",
+        )
+        .unwrap();
+        let e = EnvMap::open(&junk).unwrap_err();
+        assert!(matches!(e, EnvError::Decode { .. }), "{e}");
+    }
+}

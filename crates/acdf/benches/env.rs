@@ -1,0 +1,108 @@
+//! Time per call of environment sampling against BRDF sampling: `sample`
+//! of the environment samplers (the shading normal changing on every call,
+//! as in a renderer) beside `sample` of the BRDF samplers (the outgoing
+//! direction changing on every call), one thread.
+//!
+//! The map is `rooitou_park_1k.hdr` of the shared data when present (a
+//! sun holding 66% of the energy), else a generated 1024 × 512 sky with a
+//! small sun; the BRDF samplers are the registry's on the built-in nickel
+//! at 32x1x256x32.
+//!
+//! ```sh
+//! cargo bench -p acdf --bench env
+//! ```
+
+use std::hint::black_box;
+use std::sync::Arc;
+
+use acdf::env_registry::{make_env_sampler, EnvSamplerOptions};
+use acdf::lights::EnvMap;
+use acdf::{load_material, make_sampler, MaterialSpec, SamplerOptions};
+use acdf_core::{BxdfSampler, Rgb, SphereSampler, Vec2, Vec3};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use rand::{Rng, SeedableRng};
+
+const CALLS: usize = 4096;
+
+/// The shared map, or a generated sky with a sun.
+fn map() -> (String, Arc<EnvMap>) {
+    if let Some(dir) = acdf::materials::shared_data_dir() {
+        let path = dir.join("envmaps/rooitou_park_1k.hdr");
+        if let Ok(m) = EnvMap::open(&path) {
+            return ("rooitou_park".into(), Arc::new(m));
+        }
+    }
+    let m = EnvMap::from_fn(1024, 512, |k, j| {
+        let sun = (k as i64 - 300).abs() < 3 && (j as i64 - 150).abs() < 3;
+        if sun {
+            Rgb::splat(1e5)
+        } else if j < 256 {
+            Rgb::new(0.3, 0.5, 1.0) * (1.0 + j as f32 / 256.0)
+        } else {
+            Rgb::splat(0.2)
+        }
+    })
+    .expect("a valid generated map");
+    ("generated_sky".into(), Arc::new(m))
+}
+
+fn uniforms(seed: u64) -> Vec<Vec2> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    (0..CALLS)
+        .map(|_| Vec2::new(rng.random(), rng.random()))
+        .collect()
+}
+
+fn env(c: &mut Criterion) {
+    let (label, map) = map();
+    let u = uniforms(1);
+    let normals: Vec<Vec3> = acdf::env_report::standard_normals();
+    let mut group = c.benchmark_group(format!("env_sample_{label}"));
+    group.throughput(Throughput::Elements(CALLS as u64));
+    for name in ["uniform", "adaptive:dp", "adaptive:chi2", "oriented:dp"] {
+        let s = make_env_sampler(name, &map, &EnvSamplerOptions::default()).expect("builds");
+        // Build the cells the normals need before timing.
+        for &n in &normals {
+            s.pdf(Some(n), Vec3::Z);
+        }
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                for (i, &u) in u.iter().enumerate() {
+                    let n = normals[i % normals.len()];
+                    black_box(s.sample(Some(black_box(n)), black_box(u)));
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+fn brdf(c: &mut Criterion) {
+    let spec: MaterialSpec = "builtin:nickel".parse().expect("a built-in material");
+    let m = load_material(&spec, None).expect("loads");
+    let u = uniforms(2);
+    let wo: Vec<Vec3> = (0..64)
+        .map(|i| {
+            let t = (5.0 + 80.0 * (i as f32 / 64.0)).to_radians();
+            let p = i as f32 * 2.4;
+            Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+        })
+        .collect();
+    let mut group = c.benchmark_group("brdf_sample_nickel");
+    group.throughput(Throughput::Elements(CALLS as u64));
+    for name in ["uniform", "adaptive:dp", "adaptive:chi2"] {
+        let s = make_sampler(name, &m, &SamplerOptions::default()).expect("builds");
+        acdf::SamplerOps::build_all(&s).expect("builds");
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                for (i, &u) in u.iter().enumerate() {
+                    black_box(s.sample(black_box(wo[i % wo.len()]), black_box(u)));
+                }
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, env, brdf);
+criterion_main!(benches);

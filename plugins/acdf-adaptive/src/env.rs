@@ -1,0 +1,73 @@
+//! The adaptive family's environment samplers: the lat-long tables of
+//! `acdf-lights` as [`AdaptiveCdf2D`]s, every CDF curve simplified by a
+//! [`Simplifier`](crate::Simplifier) of [`SIMPLIFIERS`](crate::simplify::SIMPLIFIERS).
+//!
+//! - [`AdaptiveEnvSampler`]: the luminance table (`adaptive:NAME`) or its
+//!   compensated form (`adaptive-comp:NAME`);
+//! - [`OrientedEnvSampler`]: one adaptive table per cell of normals, built
+//!   on first use, mixed exactly for a shading normal (`oriented:NAME`).
+
+use std::sync::Arc;
+
+use crate::{AdaptiveBuilder, AdaptiveCdf2D};
+use acdf_core::Result;
+use acdf_lights::{EnvMap, LatLongSampler, NormalGrid, OrientedSampler, TableBuilder, TableKind};
+
+/// The table simplified as a whole by the builder's simplifier and
+/// tolerance ([`AdaptiveCdf2D::from_values`]). Unlike the BRDF slices, no
+/// row is pinned: a lat-long table has no Jacobian that vanishes at an
+/// edge (each texel is sampled uniformly in solid angle).
+impl TableBuilder for AdaptiveBuilder {
+    type Dist = AdaptiveCdf2D;
+
+    /// `adaptive:NAME`.
+    fn name(&self) -> String {
+        format!("adaptive:{}", self.simplifier.name())
+    }
+
+    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<AdaptiveCdf2D> {
+        AdaptiveCdf2D::from_values(values, nx, ny, &*self.simplifier, self.tolerance)
+    }
+}
+
+/// Directions from an adaptive table over the texels of a lat-long map.
+pub type AdaptiveEnvSampler = LatLongSampler<AdaptiveCdf2D>;
+
+/// The orientation-aware sampler with adaptive tables.
+pub type OrientedEnvSampler = OrientedSampler<AdaptiveBuilder>;
+
+/// The adaptive environment sampler of `map` for the table `kind`, named
+/// `adaptive:NAME` or `adaptive-comp:NAME`.
+pub fn adaptive_env_sampler(
+    map: &EnvMap,
+    kind: TableKind,
+    builder: &AdaptiveBuilder,
+) -> Result<AdaptiveEnvSampler> {
+    let name = match kind {
+        TableKind::Luminance => format!("adaptive:{}", builder.simplifier.name()),
+        TableKind::Compensated => format!("adaptive-comp:{}", builder.simplifier.name()),
+    };
+    LatLongSampler::build(name, map, kind, builder)
+}
+
+/// The orientation-aware sampler of `map`, named `oriented:NAME`, with the
+/// normal cells of `grid` and the defensive share `defensive` (see
+/// [`OrientedSampler`]).
+pub fn oriented_env_sampler(
+    map: Arc<EnvMap>,
+    builder: AdaptiveBuilder,
+    grid: NormalGrid,
+    defensive: f32,
+) -> Result<OrientedEnvSampler> {
+    let name = format!("oriented:{}", builder.simplifier.name());
+    OrientedSampler::new(name, map, builder, grid, defensive)
+}
+
+/// The mean kept vertices of an adaptive table: (marginal vertices, mean
+/// vertices of the stored conditionals).
+pub fn table_vertices(d: &AdaptiveCdf2D) -> (f64, f64) {
+    (
+        d.marginal_vertex_count() as f64,
+        d.mean_conditional_vertices(),
+    )
+}
