@@ -73,7 +73,7 @@ pub fn to_py(py: Python<'_>, e: Error) -> PyErr {
         Error::Io { path, source } if missing(source) => return not_found(py, path, message),
         Error::SamplerFile {
             path,
-            source: PersistError::Io { source, .. },
+            source: PersistError::File(acdf_core::fsio::FsError::Read { source, .. }),
         } if missing(source) => return not_found(py, path, message),
         Error::UnknownSamplerKind { .. } | Error::SamplerFile { .. } => "SamplerFileError",
         Error::Io { .. } | Error::Stream(_) => "IoError",

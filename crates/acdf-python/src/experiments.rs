@@ -4,9 +4,10 @@
 
 use acdf::env::Sky;
 use acdf::registry::report_samplers;
-use acdf::report::report_material;
+use acdf::report::{report_material, ReportPlan};
+use acdf::spec::SamplerAt;
 use acdf::spec::DEFAULT_REPORT_MATERIALS;
-use acdf::sweep::{default_tolerance, run_sweep, TOLERANCE_FACTORS};
+use acdf::sweep::{default_tolerance, run_sweep, SweepPlan, TOLERANCE_FACTORS};
 use acdf::{EfficiencyConfig, SamplerOptions, SamplerSpec, SimplifierName};
 use pyo3::prelude::*;
 
@@ -49,13 +50,13 @@ fn config(
     let config = EfficiencyConfig {
         samples_per_direction: samples.unwrap_or(d.samples_per_direction),
         timing_samples_per_direction: timing_samples.unwrap_or(d.timing_samples_per_direction),
-        timing_passes: timing_passes.unwrap_or(d.timing_passes),
+        timing_repeats: timing_passes.unwrap_or(d.timing_repeats),
         seed: seed.unwrap_or(d.seed),
         ..d
     };
     if config.samples_per_direction < 2
         || config.timing_samples_per_direction < 1
-        || config.timing_passes < 1
+        || config.timing_repeats < 1
     {
         return Err(raise(
             py,
@@ -132,7 +133,13 @@ pub fn report<'py>(
             let mut out = Vec::new();
             for m in &loaded {
                 let specs = chosen.clone().unwrap_or_else(|| report_samplers(m));
-                out.extend(report_material(m, &specs, &env, &options, &config, |_| {})?);
+                let plan = ReportPlan {
+                    samplers: &specs,
+                    reference: "uniform".parse::<SamplerAt>()?,
+                    options,
+                    target: None,
+                };
+                out.extend(report_material(m, &plan, &env, &config, |_| {})?);
             }
             Ok::<_, acdf::Error>(out)
         })
@@ -196,21 +203,21 @@ pub fn sweep<'py>(
     }
     let points = py
         .detach(move || {
-            run_sweep(
-                &m,
-                &Sky::dome(),
-                &options,
-                &simplifiers,
-                |s| match &tolerances {
-                    Some(t) => Ok(t.clone()),
-                    None => {
-                        let d = default_tolerance(s);
-                        Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
-                    }
-                },
-                &config,
-                |_| {},
-            )
+            let tolerances = |s: SimplifierName| match &tolerances {
+                Some(t) => Ok(t.clone()),
+                None => {
+                    let d = default_tolerance(s);
+                    Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
+                }
+            };
+            let plan = SweepPlan {
+                simplifiers: &simplifiers,
+                tolerances: &tolerances,
+                reference: "uniform".parse::<SamplerAt>()?,
+                options,
+                target: None,
+            };
+            run_sweep(&m, &Sky::dome(), &plan, &config, |_| {}).map(|(points, _)| points)
         })
         .py_err(py)?;
     rows(py, &points)

@@ -626,14 +626,23 @@ pub fn env_figure(rows: &[EnvReportRow]) -> crate::plot::Figure {
                     None => series.push(crate::plot::Series {
                         label: family,
                         points: vec![point],
+                        style: crate::plot::Style::Line,
                     }),
                 }
             }
+            let markers = (uniform.0 > 0.0 && uniform.1 > 0.0)
+                .then(|| crate::plot::Marker {
+                    label: "uniform".to_string(),
+                    point: uniform,
+                })
+                .into_iter()
+                .collect();
             crate::plot::Panel {
+                x_label: "storage (bytes)".to_string(),
                 y_label: format!("{m}: mean V/E² of the irradiance"),
                 series,
-                uniform,
-                cosine: 0.0,
+                markers,
+                notes: Vec::new(),
                 legend: i == 0,
             }
         })

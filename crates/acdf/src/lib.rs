@@ -54,6 +54,10 @@
 //! # Ok::<(), acdf::Error>(())
 //! ```
 
+// `!(x > 0.0)` is how this crate says "not positive, or NaN": the negated
+// comparison is the point, since NaN must take the rejecting branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub use acdf_core as core;
 pub use acdf_cosine as cosine;
 pub use acdf_lights as lights;

@@ -328,8 +328,7 @@ impl fmt::Display for SamplerAt {
 /// so that any θ below 90° (89.99999999 included) gives a direction above
 /// the horizon.
 pub fn parse_direction_degrees(s: &str) -> Result<acdf_core::Vec3, Error> {
-    let (theta, phi) =
-        parse_angles_degrees(s, 0.0..90.0, "[0, 90) degrees (above the horizon)")?;
+    let (theta, phi) = parse_angles_degrees(s, 0.0..90.0, "[0, 90) degrees (above the horizon)")?;
     let (sin_t, cos_t) = theta.to_radians().sin_cos();
     let (sin_p, cos_p) = phi.to_radians().sin_cos();
     Ok(direction_from_xyz(sin_t * cos_p, sin_t * sin_p, cos_t))

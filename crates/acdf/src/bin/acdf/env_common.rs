@@ -100,13 +100,11 @@ pub fn load_map(path: &Path, repair: bool) -> Result<Arc<EnvMap>> {
     Ok(Arc::new(map))
 }
 
-/// Write `bytes` to `path`, creating its directory: every file the
-/// environment subcommands write goes through here.
+/// Write `bytes` to `path` atomically, creating its directory
+/// ([`crate::common::write_file`]): every file the environment subcommands
+/// write goes through here.
 pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
-    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))
+    crate::common::write_file(path, bytes)
 }
 
 /// A label for a map in tables: the file stem without a trailing `_1k`.
