@@ -1077,7 +1077,8 @@ fn bench_takes_any_material() {
     if shared_data().is_none() {
         return;
     }
-    for m in ["nbrdf:gray-plastic"] {
+    let m = "nbrdf:gray-plastic";
+    {
         let o = acdf(&[
             "bench",
             "--material",
