@@ -101,7 +101,7 @@ impl HemisphereGrid {
                         let phi = phi_o + TAU * (ix as f64 + 0.5) / n_x as f64;
                         let (hx, hy, hz) = (sin_h * phi.cos(), sin_h * phi.sin(), cos_h);
                         let wo_h = ox * hx + oy * hy + oz * hz;
-                        if !(wo_h > 0.0) {
+                        if wo_h.is_nan() || wo_h <= 0.0 {
                             continue;
                         }
                         let wi = (
@@ -109,7 +109,7 @@ impl HemisphereGrid {
                             2.0 * wo_h * hy - oy,
                             2.0 * wo_h * hz - oz,
                         );
-                        if !(wi.2 > 0.0) {
+                        if wi.2.is_nan() || wi.2 <= 0.0 {
                             continue;
                         }
                         let wi = Vec3::new(wi.0 as f32, wi.1 as f32, wi.2 as f32);
@@ -307,7 +307,7 @@ impl Moments {
     /// the variance is 0.
     pub fn variance_rel_se(&self, n: usize) -> f64 {
         let var = self.variance();
-        if !(var > 0.0) || n < 4 {
+        if var.is_nan() || var <= 0.0 || n < 4 {
             return 0.0;
         }
         let mu = self.mean;

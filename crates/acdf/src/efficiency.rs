@@ -298,7 +298,7 @@ impl Integrands {
             .iter()
             .map(|m| {
                 let f2 = m.integral * m.integral;
-                if !(f2 > 0.0) {
+                if f2.is_nan() || f2 <= 0.0 {
                     return (0.0, 0.0);
                 }
                 let mu = m.mean;
@@ -636,7 +636,7 @@ pub fn time_samplers(
         .enumerate()
         .map(|(k, run)| {
             let timing = run.timing();
-            if k == 0 || !(anchor_median > 0.0) {
+            if k == 0 || anchor_median.is_nan() || anchor_median <= 0.0 {
                 return timing;
             }
             let rounds = run.own_seconds();
@@ -647,7 +647,7 @@ pub fn time_samplers(
                 .map(|(t, a)| t / a)
                 .collect();
             let own = median(&rounds);
-            if ratios.is_empty() || !(own > 0.0) {
+            if ratios.is_empty() || own.is_nan() || own <= 0.0 {
                 return timing;
             }
             // Scale the draw and pdf times alike, so that their sum is
