@@ -207,7 +207,7 @@ fn bad_maps_and_names_are_one_line_errors() {
         assert!(text(&o.stderr).contains(&name));
     }
     let o = acdf(&["env-sample", "--env", &path(&hdr), "--normal", "190,0"]);
-    assert_one_line_error(&o, "theta must be in [0, 180]");
+    assert_one_line_error(&o, "is not in [0, 180]");
     let o = acdf(&["env-report", "--env", &path(&hdr), "--normal-cells", "0x3"]);
     assert_one_line_error(&o, "normal cells");
 }
