@@ -66,7 +66,7 @@ pub fn to_py(py: Python<'_>, e: Error) -> PyErr {
     let name = match &e {
         Error::UnknownMaterial { .. } | Error::UnknownSampler { .. } => "UnknownNameError",
         Error::Material { .. } => "MaterialError",
-        Error::Incompatible { .. } => "IncompatibleError",
+        Error::Incompatible { .. } | Error::NotSaveable { .. } => "IncompatibleError",
         Error::InvalidArgument { .. } | Error::Input { .. } | Error::Core(_) => {
             "InvalidArgumentError"
         }

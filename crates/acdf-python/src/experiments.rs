@@ -43,14 +43,14 @@ fn config(
     py: Python<'_>,
     samples: Option<usize>,
     timing_samples: Option<usize>,
-    timing_passes: Option<usize>,
+    timing_repeats: Option<usize>,
     seed: Option<u64>,
 ) -> PyResult<EfficiencyConfig> {
     let d = EfficiencyConfig::default();
     let config = EfficiencyConfig {
         samples_per_direction: samples.unwrap_or(d.samples_per_direction),
         timing_samples_per_direction: timing_samples.unwrap_or(d.timing_samples_per_direction),
-        timing_repeats: timing_passes.unwrap_or(d.timing_repeats),
+        timing_repeats: timing_repeats.unwrap_or(d.timing_repeats),
         seed: seed.unwrap_or(d.seed),
         ..d
     };
@@ -92,7 +92,7 @@ fn table_options(
 /// 2^17 draws, seed 2005, the fastest of 3 timed passes). Runs with the
 /// interpreter released; the time columns depend on the machine's load.
 #[pyfunction]
-#[pyo3(signature = (materials = None, samplers = None, *, resolution = None, tolerance = None, cosine_mix = 0.0, samples = None, timing_samples = None, timing_passes = None, seed = None))]
+#[pyo3(signature = (materials = None, samplers = None, *, resolution = None, tolerance = None, cosine_mix = 0.0, samples = None, timing_samples = None, timing_repeats = None, seed = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn report<'py>(
     py: Python<'py>,
@@ -103,11 +103,11 @@ pub fn report<'py>(
     cosine_mix: f32,
     samples: Option<usize>,
     timing_samples: Option<usize>,
-    timing_passes: Option<usize>,
+    timing_repeats: Option<usize>,
     seed: Option<u64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = table_options(resolution, tolerance, cosine_mix)?;
-    let config = config(py, samples, timing_samples, timing_passes, seed)?;
+    let config = config(py, samples, timing_samples, timing_repeats, seed)?;
     let loaded: Vec<acdf::Material> = match materials {
         Some(list) => list
             .iter()
@@ -157,7 +157,7 @@ pub fn report<'py>(
 /// simplifier's own default × 1/16, 1/8, ..., 8). Measurement settings as
 /// for `report`.
 #[pyfunction]
-#[pyo3(signature = (material, simplifiers = None, tolerances = None, *, resolution = None, samples = None, timing_samples = None, timing_passes = None, seed = None))]
+#[pyo3(signature = (material, simplifiers = None, tolerances = None, *, resolution = None, samples = None, timing_samples = None, timing_repeats = None, seed = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn sweep<'py>(
     py: Python<'py>,
@@ -167,11 +167,11 @@ pub fn sweep<'py>(
     resolution: Option<&Bound<'py, PyAny>>,
     samples: Option<usize>,
     timing_samples: Option<usize>,
-    timing_passes: Option<usize>,
+    timing_repeats: Option<usize>,
     seed: Option<u64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = table_options(resolution, None, 0.0)?;
-    let config = config(py, samples, timing_samples, timing_passes, seed)?;
+    let config = config(py, samples, timing_samples, timing_repeats, seed)?;
     let m = material_of(py, material)?;
     let simplifiers: Vec<SimplifierName> = match simplifiers {
         None => SimplifierName::in_report().collect(),

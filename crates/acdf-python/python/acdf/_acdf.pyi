@@ -128,7 +128,7 @@ def report(
     cosine_mix: float = 0.0,
     samples: int | None = None,
     timing_samples: int | None = None,
-    timing_passes: int | None = None,
+    timing_repeats: int | None = None,
     seed: int | None = None,
 ) -> list[dict[str, Any]]:
     """The results table of `acdf report`: one dict per material and
@@ -142,7 +142,7 @@ def sweep(
     resolution: Resolution | None = None,
     samples: int | None = None,
     timing_samples: int | None = None,
-    timing_passes: int | None = None,
+    timing_repeats: int | None = None,
     seed: int | None = None,
 ) -> list[dict[str, Any]]:
     """The tolerance sweep of `acdf sweep`: one dict per point, with the
