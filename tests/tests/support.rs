@@ -14,8 +14,9 @@
 //!
 //! The missed share ∫_{p=0} f cos θ_i dω / ∫ f cos θ_i dω is taken by the
 //! midpoint rule on 128 × 256 cells in (cos θ_i, φ_i)
-//! ([`acdf_core::missed_share`], luminance-weighted) at θ_o ∈ {0, 30, 60,
-//! 70, 80, 85, 89, 89.5}° and φ_o = 1 rad; the bound is 1e-7, the
+//! ([`acdf_core::missed_share`], luminance-weighted) at θ_o ∈ {0, 0.05,
+//! 0.087 (inside the first θ_o cell), 30, 60, 70, 80, 85, 89, 89.5}° and
+//! φ_o = 1 rad; the bound is 1e-7, the
 //! battery's. The tests print `skipping: ...` and pass when the shared data
 //! is absent.
 
@@ -26,7 +27,7 @@ use acdf_tabulated::Resolution;
 use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
 use std::sync::Arc;
 
-const THETA_O_DEGREES: [f32; 8] = [0.0, 30.0, 60.0, 70.0, 80.0, 85.0, 89.0, 89.5];
+const THETA_O_DEGREES: [f32; 10] = [0.0, 0.05, 0.087, 30.0, 60.0, 70.0, 80.0, 85.0, 89.0, 89.5];
 const BOUND: f64 = 1e-7;
 
 /// Check both tabulated samplers on `brdf`; panics naming the worst wo.
