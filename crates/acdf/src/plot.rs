@@ -94,13 +94,53 @@ where
 {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let inner = root
-        .titled(&figure.title, (FAMILY, 22))
+        .titled(&figure.title, (FAMILY, title_size(figure)))
         .map_err(|e| e.to_string())?;
     let areas = inner.split_evenly((1, figure.panels.len().max(1)));
     for (area, panel) in areas.into_iter().zip(&figure.panels) {
         draw_panel(area, panel)?;
     }
     root.present().map_err(|e| e.to_string())
+}
+
+/// The title's font size: 22 pixels, smaller where the title would not
+/// fit the figure's width (a character is taken as 0.6 of the size).
+fn title_size(figure: &Figure) -> u32 {
+    let width = figure_size(figure).0 as f64;
+    let chars = figure.title.chars().count().max(1) as f64;
+    (width / (0.6 * chars)).floor().clamp(10.0, 22.0) as u32
+}
+
+/// Series colours: twelve hues that stay apart on white (the first ten
+/// are the Tableau palette), then plotters' palette.
+fn series_color(i: usize) -> RGBAColor {
+    const COLORS: [RGBColor; 12] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+        RGBColor(188, 189, 34),
+        RGBColor(23, 190, 207),
+        RGBColor(0, 0, 128),
+        RGBColor(128, 128, 0),
+    ];
+    match COLORS.get(i) {
+        Some(c) => c.to_rgba(),
+        None => Palette99::pick(i).to_rgba(),
+    }
+}
+
+/// The y range with headroom above the points for the legend of `entries`
+/// lines (about 18 pixels each in a plotting area of about 460), so that
+/// the legend, drawn in the upper right corner, covers no point.
+fn with_legend_headroom(y: std::ops::Range<f64>, entries: usize) -> std::ops::Range<f64> {
+    let share = ((entries as f64 * 18.0 + 24.0) / 460.0).min(0.8);
+    let decades = (y.end / y.start).ln();
+    y.start..(y.start.ln() + decades / (1.0 - share)).exp()
 }
 
 fn positive(v: f64) -> bool {
@@ -147,7 +187,10 @@ where
             .chain(plot.markers.iter().map(|m| m.point))
     };
     let x_range = log_range(all().map(|p| p.0));
-    let y_range = log_range(all().map(|p| p.1));
+    let mut y_range = log_range(all().map(|p| p.1));
+    if plot.legend {
+        y_range = with_legend_headroom(y_range, plot.series.len() + plot.markers.len());
+    }
 
     let mut chart = ChartBuilder::on(&root)
         .margin(12)
@@ -168,7 +211,7 @@ where
         .map_err(|e| e.to_string())?;
 
     for (i, s) in plot.series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
+        let color = series_color(i);
         let mut pts: Vec<(f64, f64)> = s
             .points
             .iter()
@@ -225,7 +268,7 @@ where
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font((FAMILY, 13))
-            .position(SeriesLabelPosition::LowerRight)
+            .position(SeriesLabelPosition::UpperRight)
             .draw()
             .map_err(|e| e.to_string())?;
     }
@@ -382,6 +425,27 @@ mod tests {
         assert_eq!(tick(0.25), "0.25");
         assert_eq!(tick(100.0), "100");
         assert_eq!(tick(1e-5), "1e-5");
+    }
+
+    /// The legend's headroom leaves the points below the share of the
+    /// height the legend takes, and a long title is set smaller so that it
+    /// fits.
+    #[test]
+    fn legend_headroom_and_long_titles() {
+        let y = with_legend_headroom(1.0..100.0, 11);
+        let legend_share = (11.0 * 18.0 + 24.0) / 460.0;
+        let points_share = (100f64).ln() / (y.end / y.start).ln();
+        assert!((points_share - (1.0 - legend_share)).abs() < 1e-9);
+        assert_eq!(with_legend_headroom(1.0..10.0, 0).start, 1.0);
+        let figure = |title: &str| Figure {
+            title: title.into(),
+            panels: Vec::new(),
+        };
+        assert_eq!(title_size(&figure("short")), 22);
+        let long = "100 MERL materials: compression and efficiency against uniform@32x16x256x32";
+        let size = title_size(&figure(long));
+        assert!(size < 22 && 0.6 * size as f64 * long.chars().count() as f64 <= 700.0);
+        assert_ne!(series_color(9), series_color(0));
     }
 
     #[test]
