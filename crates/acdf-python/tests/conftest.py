@@ -35,6 +35,20 @@ def rgl_path() -> Path:
     return path
 
 
+def env_file(name: str = "studio_small_03_1k.hdr") -> Path | None:
+    data = shared_data()
+    path = data / "envmaps" / name if data else None
+    return path if path is not None and path.is_file() else None
+
+
+@pytest.fixture(scope="session")
+def env_path() -> Path:
+    path = env_file()
+    if path is None:
+        pytest.skip("skipping: no environment map (../shared/data/envmaps absent)")
+    return path
+
+
 @pytest.fixture(scope="session")
 def acdf_bin() -> Path:
     """The `acdf` command: `$ACDF_BIN`, else target/release/acdf, else on PATH."""
