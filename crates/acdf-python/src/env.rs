@@ -148,7 +148,10 @@ impl EnvMap {
 
     fn __repr__(&self) -> String {
         let (w, h) = self.inner.size();
-        format!("acdf.EnvMap.load({:?}) ({w}x{h})", self.path.display().to_string())
+        format!(
+            "acdf.EnvMap.load({:?}) ({w}x{h})",
+            self.path.display().to_string()
+        )
     }
 }
 

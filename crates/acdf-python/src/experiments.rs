@@ -253,7 +253,8 @@ pub fn sweep<'py>(
             options,
             target,
         };
-        run_sweep(&m, &Sky::dome(), &plan, &config, |_| checkpoint.check()).map(|(points, _)| points)
+        run_sweep(&m, &Sky::dome(), &plan, &config, |_| checkpoint.check())
+            .map(|(points, _)| points)
     })?
     .py_err(py)?;
     rows(py, &points)

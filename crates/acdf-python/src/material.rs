@@ -9,8 +9,8 @@ use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
 use crate::arrays::direction_pair;
-use crate::interrupt::in_slices;
 use crate::errors::{raise, require_file, IntoPyResult};
+use crate::interrupt::in_slices;
 
 /// A measured or analytic BRDF.
 ///

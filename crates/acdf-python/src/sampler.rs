@@ -410,7 +410,11 @@ impl Sampler {
 /// `sampler.sample(wo, acdf.uniform_2d(n, seed))` reproduces its output.
 #[pyfunction]
 #[pyo3(signature = (n, seed = 1))]
-pub fn uniform_2d(py: Python<'_>, n: usize, seed: u64) -> PyResult<Bound<'_, numpy::PyArray2<f32>>> {
+pub fn uniform_2d(
+    py: Python<'_>,
+    n: usize,
+    seed: u64,
+) -> PyResult<Bound<'_, numpy::PyArray2<f32>>> {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
     let mut flat = vec![0.0f32; 2 * n];
     // One stream, drawn in order: in slices on this thread, Ctrl-C handled
