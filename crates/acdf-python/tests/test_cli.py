@@ -12,24 +12,10 @@ import numpy as np
 import pytest
 
 import acdf
+from conftest import csv_rows, run
 
 MATERIAL = "builtin:nickel"
 WO = (30.0, 45.0)
-
-
-def run(acdf_bin: Path, *args: str, stdin: str | None = None) -> str:
-    done = subprocess.run(
-        [str(acdf_bin), *args], input=stdin, capture_output=True, text=True, check=False
-    )
-    assert done.returncode == 0, done.stderr
-    return done.stdout
-
-
-def csv_rows(text: str, skip_header: bool) -> np.ndarray:
-    lines = [l for l in text.splitlines() if l.strip()]
-    if skip_header:
-        lines = lines[1:]
-    return np.array([[float(x) for x in l.split(",")] for l in lines])
 
 
 @pytest.mark.parametrize("sampler", ["adaptive:chi2", "uniform", "cosine"])

@@ -4,13 +4,13 @@ and `acdf env-pdf` for the same seed."""
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import acdf
+from conftest import csv_rows, run
 
 # Each family once, under its plain name (its default simplifier): derived
 # from the registry, so a family added in Rust is tested here too.
@@ -21,19 +21,6 @@ NORMAL = (60.0, 120.0)
 @pytest.fixture(scope="module")
 def envmap(env_path: Path) -> acdf.EnvMap:
     return acdf.EnvMap.load(env_path)
-
-
-def run(acdf_bin: Path, *args: str, stdin: str | None = None) -> str:
-    done = subprocess.run(
-        [str(acdf_bin), *args], input=stdin, capture_output=True, text=True, check=False
-    )
-    assert done.returncode == 0, done.stderr
-    return done.stdout
-
-
-def csv(text: str, skip_header: bool) -> np.ndarray:
-    lines = [l for l in text.splitlines() if l.strip()][1 if skip_header else 0:]
-    return np.array([[float(x) for x in l.split(",")] for l in lines], dtype=np.float32)
 
 
 def test_names_come_from_the_registry() -> None:
@@ -121,7 +108,9 @@ def test_sample_and_pdf_equal_the_command_line(
     n, seed = 2000, 7
     normal = f"{NORMAL[0]:g},{NORMAL[1]:g}"
     common = ["--env", str(env_path), "--sampler", name, "--normal", normal]
-    cli = csv(run(acdf_bin, "env-sample", *common, "--n", str(n), "--seed", str(seed)), True)
+    cli = csv_rows(
+        run(acdf_bin, "env-sample", *common, "--n", str(n), "--seed", str(seed)), skip_header=True
+    ).astype(np.float32)
     s = acdf.EnvSampler(envmap, name)
     dirs, pdf, valid = s.sample(acdf.sphere_direction(*NORMAL), acdf.uniform_2d(n, seed))
     # Every float32 printed in its shortest exact form: equal bit for bit.
@@ -130,6 +119,8 @@ def test_sample_and_pdf_equal_the_command_line(
     np.testing.assert_array_equal(valid, cli[:, 3] > 0)
 
     stdin = "\n".join(",".join(repr(float(x)) for x in d) for d in dirs[valid])
-    cli_pdf = csv(run(acdf_bin, "env-pdf", *common, stdin=stdin), False)[:, 0]
+    cli_pdf = csv_rows(
+        run(acdf_bin, "env-pdf", *common, stdin=stdin), skip_header=False
+    ).astype(np.float32)[:, 0]
     np.testing.assert_allclose(s.pdf(acdf.sphere_direction(*NORMAL), dirs[valid]), cli_pdf,
                                rtol=1e-5)
