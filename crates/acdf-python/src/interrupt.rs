@@ -10,7 +10,9 @@
 //!   of its own while the calling thread waits for it, checking for
 //!   signals every [`POLL`]. On Ctrl-C the call raises `KeyboardInterrupt`
 //!   at once; the computation is told to stop through its [`Checkpoint`],
-//!   which it passes at each step it reports, and its result is dropped.
+//!   which it passes at each step it reports (a report's samplers, a
+//!   search's tolerances), and its result is dropped. A build of tables
+//!   reports no steps: it runs to its end in the background.
 
 use std::any::Any;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
