@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import pathlib
 from typing import Any, Sequence
 
 import numpy as np
@@ -138,7 +139,7 @@ class EnvMap:
         `repair`, which sets them to 0 with a warning);
         `acdf.InvalidArgumentError` for a black map."""
     @property
-    def path(self) -> os.PathLike[str] | str:
+    def path(self) -> pathlib.Path:
         """The file it was read from."""
     @property
     def size(self) -> tuple[int, int]:
