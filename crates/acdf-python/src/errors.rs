@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use acdf::lights::EnvError;
 use acdf::Error;
 use acdf_tabulated::persist::PersistError;
 use pyo3::exceptions::PyRuntimeError;
@@ -76,6 +77,13 @@ pub fn to_py(py: Python<'_>, e: Error) -> PyErr {
             source: PersistError::File(acdf_core::fsio::FsError::Read { source, .. }),
         } if missing(source) => return not_found(py, path, message),
         Error::UnknownSamplerKind { .. } | Error::SamplerFile { .. } => "SamplerFileError",
+        Error::TargetNotReached { .. } => "TargetNotReachedError",
+        Error::Env(EnvError::Io { path, source }) if missing(source) => {
+            return not_found(py, path, message)
+        }
+        Error::Env(EnvError::Io { .. }) => "IoError",
+        Error::Env(EnvError::Core(_)) => "InvalidArgumentError",
+        Error::Env(_) => "EnvMapError",
         Error::Io { .. } | Error::Stream(_) => "IoError",
         _ => "Error",
     };

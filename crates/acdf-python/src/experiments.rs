@@ -11,14 +11,26 @@ use acdf::sweep::{default_tolerance, run_sweep, SweepPlan, TOLERANCE_FACTORS};
 use acdf::{EfficiencyConfig, SamplerOptions, SamplerSpec, SimplifierName};
 use pyo3::prelude::*;
 
+use acdf::target::check_target;
+
 use crate::errors::{raise, IntoPyResult};
+use crate::interrupt::cancellable;
 use crate::material::Material;
-use crate::sampler::parse_resolution;
+use crate::sampler::{check_tolerance, parse_reference, parse_resolution};
 
 /// Rows serialised as the command's JSON, then read by Python's `json`
 /// module: a list of dicts whose keys keep the order of the JSON output.
 fn rows<'py, T: serde::Serialize>(py: Python<'py>, rows: &[T]) -> PyResult<Bound<'py, PyAny>> {
-    let text = serde_json::to_string(rows).map_err(|e| raise(py, "Error", e.to_string()))?;
+    json_value(py, rows)
+}
+
+/// A value serialised as JSON, then read by Python's `json` module (dicts,
+/// lists, numbers, strings, None).
+pub fn json_value<'py, T: serde::Serialize + ?Sized>(
+    py: Python<'py>,
+    value: &T,
+) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(value).map_err(|e| raise(py, "Error", e.to_string()))?;
     py.import("json")?.call_method1("loads", (text,))
 }
 
@@ -82,6 +94,22 @@ fn table_options(
     })
 }
 
+/// The target efficiency, checked, and the reference: `reference` parsed,
+/// or the command's default (`uniform` at the plan's resolution;
+/// `uniform@32x16x256x32` with a target).
+fn target_and_reference(
+    py: Python<'_>,
+    target: Option<f64>,
+    reference: Option<&str>,
+) -> PyResult<(Option<f64>, SamplerAt)> {
+    let target = target.map(check_target).transpose().py_err(py)?;
+    let reference = match (reference, target) {
+        (None, None) => SamplerAt::plain(SamplerSpec::UNIFORM),
+        (r, _) => parse_reference(py, r)?,
+    };
+    Ok((target, reference))
+}
+
 /// The results table of `acdf report`, as a list of dicts (one per
 /// material and sampler, with the keys of `acdf report --json`).
 ///
@@ -89,10 +117,15 @@ fn table_options(
 /// three built-in stand-ins of `acdf report`); `samplers` are names of
 /// `acdf.SAMPLER_NAMES` (default: the report's set for each material). The
 /// measurement settings default to the command's (12 outgoing directions ×
-/// 2^17 draws, seed 2005, the fastest of 3 timed passes). Runs with the
-/// interpreter released; the time columns depend on the machine's load.
+/// 2^17 draws, seed 2005, the median of 9 timed passes). `reference` is
+/// the reference of the relative columns, `NAME` or `NAME@RES` (default:
+/// `uniform` at `resolution`); with `target_efficiency` each adaptive
+/// sampler's tolerance is searched for first, as `acdf report
+/// --target-efficiency` does (the reference then defaults to
+/// `uniform@32x16x256x32`). Runs with the interpreter released; Ctrl-C
+/// interrupts it; the time columns depend on the machine's load.
 #[pyfunction]
-#[pyo3(signature = (materials = None, samplers = None, *, resolution = None, tolerance = None, cosine_mix = 0.0, samples = None, timing_samples = None, timing_repeats = None, seed = None))]
+#[pyo3(signature = (materials = None, samplers = None, *, resolution = None, tolerance = None, cosine_mix = 0.0, samples = None, timing_samples = None, timing_repeats = None, seed = None, target_efficiency = None, reference = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn report<'py>(
     py: Python<'py>,
@@ -105,8 +138,12 @@ pub fn report<'py>(
     timing_samples: Option<usize>,
     timing_repeats: Option<usize>,
     seed: Option<u64>,
+    target_efficiency: Option<f64>,
+    reference: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    check_tolerance(py, tolerance)?;
     let options = table_options(resolution, tolerance, cosine_mix)?;
+    let (target, reference) = target_and_reference(py, target_efficiency, reference)?;
     let config = config(py, samples, timing_samples, timing_repeats, seed)?;
     let loaded: Vec<acdf::Material> = match materials {
         Some(list) => list
@@ -127,23 +164,25 @@ pub fn report<'py>(
         })
         .transpose()
         .py_err(py)?;
-    let measured = py
-        .detach(move || {
-            let env = Sky::dome();
-            let mut out = Vec::new();
-            for m in &loaded {
-                let specs = chosen.clone().unwrap_or_else(|| report_samplers(m));
-                let plan = ReportPlan {
-                    samplers: &specs,
-                    reference: "uniform".parse::<SamplerAt>()?,
-                    options,
-                    target: None,
-                };
-                out.extend(report_material(m, &plan, &env, &config, |_| {})?);
-            }
-            Ok::<_, acdf::Error>(out)
-        })
-        .py_err(py)?;
+    let measured = cancellable(py, move |checkpoint| {
+        let env = Sky::dome();
+        let mut out = Vec::new();
+        for m in &loaded {
+            checkpoint.check();
+            let specs = chosen.clone().unwrap_or_else(|| report_samplers(m));
+            let plan = ReportPlan {
+                samplers: &specs,
+                reference,
+                options,
+                target,
+            };
+            out.extend(report_material(m, &plan, &env, &config, |_| {
+                checkpoint.check()
+            })?);
+        }
+        Ok::<_, acdf::Error>(out)
+    })?
+    .py_err(py)?;
     rows(py, &measured)
 }
 
@@ -155,9 +194,11 @@ pub fn report<'py>(
 /// of `acdf.SIMPLIFIER_NAMES` (default: those `acdf report` compares);
 /// `tolerances` the tolerances of every simplifier (default: each
 /// simplifier's own default × 1/16, 1/8, ..., 8). Measurement settings as
-/// for `report`.
+/// for `report`; `target_efficiency` adds, for each simplifier, the point
+/// its tolerance search chooses (`acdf sweep --target-efficiency`), and
+/// `reference` is as for `report`. Ctrl-C interrupts it.
 #[pyfunction]
-#[pyo3(signature = (material, simplifiers = None, tolerances = None, *, resolution = None, samples = None, timing_samples = None, timing_repeats = None, seed = None))]
+#[pyo3(signature = (material, simplifiers = None, tolerances = None, *, resolution = None, samples = None, timing_samples = None, timing_repeats = None, seed = None, target_efficiency = None, reference = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn sweep<'py>(
     py: Python<'py>,
@@ -169,8 +210,11 @@ pub fn sweep<'py>(
     timing_samples: Option<usize>,
     timing_repeats: Option<usize>,
     seed: Option<u64>,
+    target_efficiency: Option<f64>,
+    reference: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = table_options(resolution, None, 0.0)?;
+    let (target, reference) = target_and_reference(py, target_efficiency, reference)?;
     let config = config(py, samples, timing_samples, timing_repeats, seed)?;
     let m = material_of(py, material)?;
     let simplifiers: Vec<SimplifierName> = match simplifiers {
@@ -191,34 +235,27 @@ pub fn sweep<'py>(
             })
             .collect::<PyResult<_>>()?,
     };
-    if let Some(t) = tolerances
-        .as_ref()
-        .and_then(|t| t.iter().find(|t| t.is_nan() || **t < 0.0))
-    {
-        return Err(raise(
-            py,
-            "InvalidArgumentError",
-            format!("invalid tolerance `{t}`: must be a non-negative number"),
-        ));
+    for &t in tolerances.iter().flatten() {
+        check_tolerance(py, Some(t))?;
     }
-    let points = py
-        .detach(move || {
-            let tolerances = |s: SimplifierName| match &tolerances {
-                Some(t) => Ok(t.clone()),
-                None => {
-                    let d = default_tolerance(s);
-                    Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
-                }
-            };
-            let plan = SweepPlan {
-                simplifiers: &simplifiers,
-                tolerances: &tolerances,
-                reference: "uniform".parse::<SamplerAt>()?,
-                options,
-                target: None,
-            };
-            run_sweep(&m, &Sky::dome(), &plan, &config, |_| {}).map(|(points, _)| points)
-        })
-        .py_err(py)?;
+    let points = cancellable(py, move |checkpoint| {
+        let tolerances = |s: SimplifierName| match &tolerances {
+            Some(t) => Ok(t.clone()),
+            None => {
+                let d = default_tolerance(s);
+                Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
+            }
+        };
+        let plan = SweepPlan {
+            simplifiers: &simplifiers,
+            tolerances: &tolerances,
+            reference,
+            options,
+            target,
+        };
+        run_sweep(&m, &Sky::dome(), &plan, &config, |_| checkpoint.check())
+            .map(|(points, _)| points)
+    })?
+    .py_err(py)?;
     rows(py, &points)
 }

@@ -8,8 +8,9 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
-use crate::arrays::{chunked_by, direction_pair};
+use crate::arrays::direction_pair;
 use crate::errors::{raise, require_file, IntoPyResult};
+use crate::interrupt::in_slices;
 
 /// A measured or analytic BRDF.
 ///
@@ -121,19 +122,16 @@ impl Material {
         wi: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (wo, wi, n) = direction_pair(wo, wi)?;
-        let brdf = self.inner.brdf.clone();
-        let out = py.detach(move || {
-            let (wo, wi) = (wo.normalised(), wi.normalised());
-            let mut out = vec![0.0f32; 3 * n.unwrap_or(1)];
-            chunked_by(&mut out, 3, |start, chunk| {
-                let len = chunk.len() / 3;
-                let (wo, wi) = (wo.chunk(start, len), wi.chunk(start, len));
-                for (k, o) in chunk.chunks_exact_mut(3).enumerate() {
-                    o.copy_from_slice(&brdf.eval(wo[k], wi[k]).to_array());
-                }
-            });
-            out
-        });
+        let brdf = &self.inner.brdf;
+        let (wo, wi) = py.detach(move || (wo.normalised(), wi.normalised()));
+        let mut out = vec![0.0f32; 3 * n.unwrap_or(1)];
+        in_slices(py, &mut out, 3, |start, chunk| {
+            let len = chunk.len() / 3;
+            let (wo, wi) = (wo.chunk(start, len), wi.chunk(start, len));
+            for (k, o) in chunk.chunks_exact_mut(3).enumerate() {
+                o.copy_from_slice(&brdf.eval(wo[k], wi[k]).to_array());
+            }
+        })?;
         match n {
             None => Ok(PyArray1::from_vec(py, out).into_any()),
             Some(n) => {

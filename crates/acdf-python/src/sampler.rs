@@ -15,8 +15,13 @@ use pyo3::types::{PyString, PyTuple};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use crate::arrays::{chunked, common_len, direction_pair, read, Rows, CHUNK, PARALLEL_MIN};
+use acdf::spec::SamplerAt;
+use acdf::target::{build_for_target, check_target, TargetOutcome};
+
+use crate::arrays::{common_len, direction_pair, read, Rows, CHUNK, PARALLEL_MIN};
 use crate::errors::{raise, require_file, IntoPyResult};
+use crate::experiments::json_value;
+use crate::interrupt::{cancellable, in_slices, SLICE};
 use crate::material::Material;
 
 /// An importance sampler of incident directions for one material.
@@ -31,6 +36,8 @@ pub struct Sampler {
     sampler: Arc<AnySampler>,
     name: String,
     material: Py<Material>,
+    /// The target-efficiency search that chose the tolerance, if any.
+    search: Option<TargetOutcome>,
 }
 
 /// Options from the keyword arguments, checked as the command line checks
@@ -40,48 +47,37 @@ fn options(
     resolution: Option<&Bound<'_, PyAny>>,
     tolerance: Option<f64>,
     cosine_mix: f32,
-    target_efficiency: Option<f64>,
 ) -> PyResult<SamplerOptions> {
-    let mut options = SamplerOptions {
+    check_tolerance(py, tolerance)?;
+    Ok(SamplerOptions {
         resolution: match resolution {
             None => Resolution::ISOTROPIC,
             Some(r) => parse_resolution(r)?,
         },
         tolerance,
         cosine_mix,
-    };
-    if let Some(t) = tolerance {
-        if t.is_nan() || t < 0.0 {
-            return Err(raise(
-                py,
-                "InvalidArgumentError",
-                format!("invalid tolerance `{t}`: must be a non-negative number"),
-            ));
-        }
-    }
-    if let Some(target) = target_efficiency {
-        apply_target_efficiency(py, &mut options, target)?;
-    }
-    Ok(options)
+    })
 }
 
-/// The hook for `target_efficiency=`: choosing the simplifier's tolerance
-/// from a target efficiency relative to the uniform sampler. The registry
-/// has no such option yet, so it raises `acdf.NotAvailableError`; when the
-/// option exists this sets it on `options`.
-fn apply_target_efficiency(
-    py: Python<'_>,
-    _options: &mut SamplerOptions,
-    target: f64,
-) -> PyResult<()> {
-    Err(raise(
-        py,
-        "NotAvailableError",
-        format!(
-            "target_efficiency={target}: choosing the tolerance from a target efficiency is not \
-             available in this build of acdf; pass tolerance= instead"
-        ),
-    ))
+/// A tolerance must be a non-negative number (`acdf.InvalidArgumentError`).
+pub fn check_tolerance(py: Python<'_>, tolerance: Option<f64>) -> PyResult<()> {
+    match tolerance {
+        Some(t) if t.is_nan() || t < 0.0 => Err(raise(
+            py,
+            "InvalidArgumentError",
+            format!("invalid tolerance `{t}`: must be a non-negative number"),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// The reference of a target efficiency: `NAME` or `NAME@RES`, by default
+/// `uniform@32x16x256x32` as for `acdf build --target-efficiency`.
+pub fn parse_reference(py: Python<'_>, reference: Option<&str>) -> PyResult<SamplerAt> {
+    match reference {
+        Some(r) => r.parse::<SamplerAt>().py_err(py),
+        None => Ok(SamplerAt::PAPER_UNIFORM),
+    }
 }
 
 /// `"32x1x256x32"`, `"paper"`, or a tuple of four counts (θ_o, φ_o, θ_h, φ_h).
@@ -119,14 +115,16 @@ pub fn parse_resolution(r: &Bound<'_, PyAny>) -> PyResult<Resolution> {
 
 /// Draw `n` rows: the columns wi (n×3), pdf and valid, a failed draw
 /// being (0, 0, 0), 0, false as `acdf sample` prints it. Each chunk of rows
-/// is drawn by one `sample_batch` (a single wo) or `sample_each` call, the
-/// chunks on rayon's pool for a large batch.
+/// is drawn by one `sample_batch` (a single wo) or `sample_each` call, in
+/// slices between which Ctrl-C is handled ([`SLICE`]), the chunks of a
+/// large slice on rayon's pool.
 fn draw(
+    py: Python<'_>,
     sampler: &AnySampler,
     wo: &Rows<Vec3>,
     u: &Rows<Vec2>,
     n: usize,
-) -> (Vec<f32>, Vec<f32>, Vec<bool>) {
+) -> PyResult<(Vec<f32>, Vec<f32>, Vec<bool>)> {
     let mut wi = vec![0.0f32; 3 * n];
     let mut pdf = vec![0.0f32; n];
     let mut valid = vec![false; n];
@@ -146,16 +144,27 @@ fn draw(
             }
         }
     };
-    if n < PARALLEL_MIN {
-        work(0, &mut wi, &mut pdf, &mut valid);
-    } else {
-        wi.par_chunks_mut(3 * CHUNK)
-            .zip(pdf.par_chunks_mut(CHUNK))
-            .zip(valid.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, ((wi, pdf), valid))| work(c * CHUNK, wi, pdf, valid));
+    let slices = wi
+        .chunks_mut(3 * SLICE)
+        .zip(pdf.chunks_mut(SLICE))
+        .zip(valid.chunks_mut(SLICE));
+    for (s, ((wi, pdf), valid)) in slices.enumerate() {
+        let base = s * SLICE;
+        let work = &work;
+        py.detach(move || {
+            if pdf.len() < PARALLEL_MIN {
+                work(base, wi, pdf, valid);
+            } else {
+                wi.par_chunks_mut(3 * CHUNK)
+                    .zip(pdf.par_chunks_mut(CHUNK))
+                    .zip(valid.par_chunks_mut(CHUNK))
+                    .enumerate()
+                    .for_each(|(c, ((wi, pdf), valid))| work(base + c * CHUNK, wi, pdf, valid));
+            }
+        });
+        py.check_signals()?;
     }
-    (wi, pdf, valid)
+    Ok((wi, pdf, valid))
 }
 
 #[pymethods]
@@ -168,12 +177,22 @@ impl Sampler {
     /// gets 16 φ_o slices where one is asked for. `tolerance` is the
     /// simplifier's (default: its own), `cosine_mix` the probability of
     /// drawing from a cosine lobe instead of the tables.
-    /// `target_efficiency` is reserved for choosing the tolerance from a
-    /// target efficiency; this build raises `acdf.NotAvailableError` for it.
+    ///
+    /// `target_efficiency` (a positive number) replaces the tolerance by a
+    /// quality target, for an adaptive sampler: the tolerance is searched
+    /// for, from `tolerance` or the simplifier's default, as `acdf build
+    /// --target-efficiency` does, and the sampler of least storage whose
+    /// efficiency is at least that fraction of `reference`'s is built
+    /// (`reference`: `NAME` or `NAME@RES`, default
+    /// `uniform@32x16x256x32`). `target_search` then holds what the search
+    /// tried; a target no tolerance reaches raises
+    /// `acdf.TargetNotReachedError`.
+    ///
     /// Every table is built now, in parallel and with the interpreter
     /// released, unless `lazy` is true (then each is built on first use).
+    /// Ctrl-C interrupts the build.
     #[new]
-    #[pyo3(signature = (material, name, *, resolution = None, tolerance = None, cosine_mix = 0.0, target_efficiency = None, lazy = false))]
+    #[pyo3(signature = (material, name, *, resolution = None, tolerance = None, cosine_mix = 0.0, target_efficiency = None, reference = None, lazy = false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -183,25 +202,62 @@ impl Sampler {
         tolerance: Option<f64>,
         cosine_mix: f32,
         target_efficiency: Option<f64>,
+        reference: Option<&str>,
         lazy: bool,
     ) -> PyResult<Sampler> {
-        let options = options(py, resolution, tolerance, cosine_mix, target_efficiency)?;
+        let options = options(py, resolution, tolerance, cosine_mix)?;
         let spec: SamplerSpec = name.parse::<SamplerSpec>().py_err(py)?;
         let m = material.get().inner.clone();
-        let sampler = py
-            .detach(move || {
-                let sampler = make_sampler_spec(spec, &m, &options)?;
-                if !lazy {
-                    sampler.build_all()?;
+        let (sampler, search) = match target_efficiency {
+            None => {
+                if reference.is_some() {
+                    return Err(raise(
+                        py,
+                        "InvalidArgumentError",
+                        "invalid reference: `reference` is the reference of `target_efficiency`, \
+                         which is not given",
+                    ));
                 }
-                Ok::<_, acdf::Error>(sampler)
-            })
-            .py_err(py)?;
+                let built = cancellable(py, move |_| {
+                    let sampler = make_sampler_spec(spec, &m, &options)?;
+                    if !lazy {
+                        sampler.build_all()?;
+                    }
+                    Ok::<_, acdf::Error>(sampler)
+                })?;
+                (built.py_err(py)?, None)
+            }
+            Some(target) => {
+                check_target(target).py_err(py)?;
+                let reference = parse_reference(py, reference)?;
+                let found = cancellable(py, move |checkpoint| {
+                    let (outcome, sampler) =
+                        build_for_target(&m, spec, &options, reference, target, |_| {
+                            checkpoint.check()
+                        })?;
+                    outcome.require_reached(&reference.to_string())?;
+                    Ok::<_, acdf::Error>((sampler, outcome))
+                })?;
+                let (sampler, outcome) = found.py_err(py)?;
+                (sampler, Some(outcome))
+            }
+        };
         Ok(Sampler {
-            sampler: Arc::new(sampler),
             name: spec.to_string(),
+            sampler: Arc::new(sampler),
             material,
+            search,
         })
+    }
+
+    /// What the target-efficiency search found (`target_efficiency=`): a
+    /// dict with the keys `sampler`, `target`, `reached`, `chosen` (the
+    /// candidate built: `tolerance`, `storage_bytes`,
+    /// `relative_variance`, `relative_efficiency`, ...) and `tried` (every
+    /// candidate, in order); None for a sampler built without a target.
+    #[getter]
+    fn target_search<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.search.as_ref().map(|s| json_value(py, s)).transpose()
     }
 
     /// Read a sampler file written by `Sampler.save` or `acdf build`; it
@@ -231,6 +287,7 @@ impl Sampler {
             name: sampler.name().to_string(),
             sampler: Arc::new(sampler),
             material,
+            search: None,
         })
     }
 
@@ -292,9 +349,8 @@ impl Sampler {
     ) -> PyResult<Bound<'py, PyTuple>> {
         let (wo, u) = (read::<Vec3>(wo, "wo")?, read::<Vec2>(u, "u")?);
         let n = common_len(py, &[("wo", wo.len()), ("u", u.len())])?;
-        let sampler = self.sampler.clone();
-        let (wi, pdf, valid) =
-            py.detach(move || draw(&sampler, &wo.normalised(), &u, n.unwrap_or(1)));
+        let wo = py.detach(move || wo.normalised());
+        let (wi, pdf, valid) = draw(py, &self.sampler, &wo, &u, n.unwrap_or(1))?;
         match n {
             None => (PyArray1::from_vec(py, wi), pdf[0], valid[0]).into_pyobject(py),
             Some(n) => {
@@ -322,19 +378,16 @@ impl Sampler {
         wi: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (wo, wi, n) = direction_pair(wo, wi)?;
-        let sampler = self.sampler.clone();
-        let out = py.detach(move || {
-            let (wo, wi) = (wo.normalised(), wi.normalised());
-            let mut out = vec![0.0f32; n.unwrap_or(1)];
-            chunked(&mut out, |start, chunk| {
-                let wis = wi.chunk(start, chunk.len());
-                match &wo {
-                    Rows::One(w) => sampler.pdf_batch(*w, &wis, chunk),
-                    Rows::Many(_) => sampler.pdf_each(&wo.chunk(start, chunk.len()), &wis, chunk),
-                }
-            });
-            out
-        });
+        let sampler = &self.sampler;
+        let (wo, wi) = py.detach(move || (wo.normalised(), wi.normalised()));
+        let mut out = vec![0.0f32; n.unwrap_or(1)];
+        in_slices(py, &mut out, 1, |start, chunk| {
+            let wis = wi.chunk(start, chunk.len());
+            match &wo {
+                Rows::One(w) => sampler.pdf_batch(*w, &wis, chunk),
+                Rows::Many(_) => sampler.pdf_each(&wo.chunk(start, chunk.len()), &wis, chunk),
+            }
+        })?;
         match n {
             None => Ok(out[0].into_pyobject(py)?.into_any()),
             Some(_) => Ok(PyArray1::from_vec(py, out).into_any()),
@@ -357,19 +410,28 @@ impl Sampler {
 /// `sampler.sample(wo, acdf.uniform_2d(n, seed))` reproduces its output.
 #[pyfunction]
 #[pyo3(signature = (n, seed = 1))]
-pub fn uniform_2d(py: Python<'_>, n: usize, seed: u64) -> Bound<'_, numpy::PyArray2<f32>> {
-    let flat = py.detach(move || {
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-        let mut flat = Vec::with_capacity(2 * n);
-        for _ in 0..n {
-            let u = Vec2::new(rng.random(), rng.random());
-            flat.extend_from_slice(&[u.x, u.y]);
-        }
-        flat
-    });
-    Array2::from_shape_vec((n, 2), flat)
+pub fn uniform_2d(
+    py: Python<'_>,
+    n: usize,
+    seed: u64,
+) -> PyResult<Bound<'_, numpy::PyArray2<f32>>> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let mut flat = vec![0.0f32; 2 * n];
+    // One stream, drawn in order: in slices on this thread, Ctrl-C handled
+    // between them.
+    for slice in flat.chunks_mut(2 * SLICE) {
+        let rng = &mut rng;
+        py.detach(move || {
+            for pair in slice.chunks_exact_mut(2) {
+                let u = Vec2::new(rng.random(), rng.random());
+                pair.copy_from_slice(&[u.x, u.y]);
+            }
+        });
+        py.check_signals()?;
+    }
+    Ok(Array2::from_shape_vec((n, 2), flat)
         .expect("n rows of 2")
-        .into_pyarray(py)
+        .into_pyarray(py))
 }
 
 /// The unit direction at polar angle `theta_deg` (from the normal, in

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import os
 import shutil
+import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[3]
@@ -21,10 +23,15 @@ def shared_data() -> Path | None:
     return next((p for p in candidates if p.is_dir()), None)
 
 
-def rgl_file(name: str = "ilm_solo_m_68_rgb.bsdf") -> Path | None:
+def data_file(folder: str, name: str) -> Path | None:
+    """`name` in the shared data's `folder`, if it is there."""
     data = shared_data()
-    path = data / "rgl-material-database" / name if data else None
+    path = data / folder / name if data else None
     return path if path is not None and path.is_file() else None
+
+
+def rgl_file(name: str = "ilm_solo_m_68_rgb.bsdf") -> Path | None:
+    return data_file("rgl-material-database", name)
 
 
 @pytest.fixture(scope="session")
@@ -32,6 +39,18 @@ def rgl_path() -> Path:
     path = rgl_file()
     if path is None:
         pytest.skip("skipping: no RGL material (../shared/data/rgl-material-database absent)")
+    return path
+
+
+def env_file(name: str = "studio_small_03_1k.hdr") -> Path | None:
+    return data_file("envmaps", name)
+
+
+@pytest.fixture(scope="session")
+def env_path() -> Path:
+    path = env_file()
+    if path is None:
+        pytest.skip("skipping: no environment map (../shared/data/envmaps absent)")
     return path
 
 
@@ -48,3 +67,20 @@ def acdf_bin() -> Path:
         if c.is_file() and os.access(c, os.X_OK):
             return c
     pytest.skip("skipping: no acdf command (cargo build --release -p acdf, or set ACDF_BIN)")
+
+
+def run(acdf_bin: Path, *args: str, stdin: str | None = None) -> str:
+    """The `acdf` command's stdout; it must succeed."""
+    done = subprocess.run(
+        [str(acdf_bin), *args], input=stdin, capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def csv_rows(text: str, skip_header: bool) -> np.ndarray:
+    """The numbers of the command's CSV output, one row a line."""
+    lines = [l for l in text.splitlines() if l.strip()]
+    if skip_header:
+        lines = lines[1:]
+    return np.array([[float(x) for x in l.split(",")] for l in lines])

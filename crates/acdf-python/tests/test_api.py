@@ -244,13 +244,29 @@ def test_options(nickel: acdf.Material) -> None:
             acdf.Sampler(nickel, "adaptive:chi2", **kwargs)
 
 
-def test_reserved_parameters_say_they_are_not_available(nickel: acdf.Material) -> None:
-    with pytest.raises(acdf.NotAvailableError, match="target_efficiency"):
-        acdf.Sampler(nickel, "adaptive:chi2", target_efficiency=0.9)
-    with pytest.raises(NotImplementedError):
-        acdf.Sampler(nickel, "adaptive:chi2", target_efficiency=0.9)
-    with pytest.raises(acdf.NotAvailableError, match="environment"):
-        acdf.EnvironmentSampler("studio.hdr", "adaptive:chi2")
+def test_bad_target_efficiency_raises_a_typed_error(nickel: acdf.Material) -> None:
+    # Checked before anything is built: each fails at once.
+    for bad in [0.0, -0.5, float("nan"), float("inf")]:
+        with pytest.raises(acdf.InvalidArgumentError, match="invalid target efficiency"):
+            acdf.Sampler(nickel, "adaptive:chi2", resolution=SMALL, target_efficiency=bad)
+    with pytest.raises(ValueError, match="searches the tolerance of an adaptive sampler"):
+        acdf.Sampler(nickel, "uniform", resolution=SMALL, target_efficiency=0.5)
+    with pytest.raises(acdf.UnknownNameError):
+        acdf.Sampler(nickel, "adaptive:chi2", target_efficiency=0.5, reference="nope")
+    with pytest.raises(acdf.InvalidArgumentError, match="reference"):
+        acdf.Sampler(nickel, "adaptive:chi2", reference="uniform")
+    with pytest.raises(acdf.InvalidArgumentError, match="invalid target efficiency"):
+        acdf.report(["builtin:nickel"], ["adaptive:chi2"], target_efficiency=-1.0)
+    with pytest.raises(acdf.InvalidArgumentError, match="invalid target efficiency"):
+        acdf.sweep("builtin:nickel", ["chi2"], target_efficiency=0.0)
+
+
+def test_an_unreachable_target_says_the_best_found(nickel: acdf.Material) -> None:
+    # No sampler is 1000 times as efficient as the uniform table.
+    with pytest.raises(acdf.TargetNotReachedError, match="no tolerance of adaptive:chi2 reaches 1000") as e:
+        acdf.Sampler(nickel, "adaptive:chi2", resolution=SMALL, target_efficiency=1000.0,
+                     reference="uniform@8x1x32x8")
+    assert "the best found is" in str(e.value) and isinstance(e.value, ValueError)
 
 
 def test_errors_name_their_cause(tmp_path, nickel: acdf.Material) -> None:

@@ -12,24 +12,10 @@ import numpy as np
 import pytest
 
 import acdf
+from conftest import csv_rows, run
 
 MATERIAL = "builtin:nickel"
 WO = (30.0, 45.0)
-
-
-def run(acdf_bin: Path, *args: str, stdin: str | None = None) -> str:
-    done = subprocess.run(
-        [str(acdf_bin), *args], input=stdin, capture_output=True, text=True, check=False
-    )
-    assert done.returncode == 0, done.stderr
-    return done.stdout
-
-
-def csv_rows(text: str, skip_header: bool) -> np.ndarray:
-    lines = [l for l in text.splitlines() if l.strip()]
-    if skip_header:
-        lines = lines[1:]
-    return np.array([[float(x) for x in l.split(",")] for l in lines])
 
 
 @pytest.mark.parametrize("sampler", ["adaptive:chi2", "uniform", "cosine"])
@@ -118,3 +104,44 @@ def test_sweep_equals_the_command_line(acdf_bin: Path, tmp_path: Path) -> None:
     for a, b in zip(py, cli, strict=True):
         for key in ("sampler", "tolerance", "storage_bytes", "relative_variance", "mean_marginal_vertices"):
             assert a[key] == b[key], key
+
+
+def test_target_efficiency_builds_what_the_command_builds(acdf_bin: Path, tmp_path: Path) -> None:
+    # A target every candidate meets (the least efficient of the search is
+    # ~0.15 of the reference), so the choice depends on storage only, not
+    # on the clock: the search steps the tolerance up until the storage
+    # stops shrinking and keeps the smallest such tolerance.
+    args = {"resolution": "8x1x32x8", "reference": "uniform@8x1x32x8"}
+    out = tmp_path / "target.acdfs"
+    text = run(acdf_bin, "build", "--material", MATERIAL, "--sampler", "adaptive:chi2",
+               "--resolution", args["resolution"], "--reference", args["reference"],
+               "--target-efficiency", "0.01", "--out", str(out))
+    m = acdf.Material.load(MATERIAL)
+    s = acdf.Sampler(m, "adaptive:chi2", target_efficiency=0.01, **args)
+    search = s.target_search
+    assert search["reached"] and search["target"] == 0.01
+    chosen = search["chosen"]
+    assert chosen["storage_bytes"] == s.storage_bytes
+    assert chosen["storage_bytes"] == min(c["storage_bytes"] for c in search["tried"])
+    # The command's line: "adaptive:chi2: tolerance 6.144e0 meets ..." (Rust's
+    # `{:.3e}`: no sign or leading zeros in the exponent).
+    mantissa, exponent = f"{chosen['tolerance']:.3e}".split("e")
+    assert f"tolerance {mantissa}e{int(exponent)} meets" in text, text
+    loaded = acdf.Sampler.load(out, m)
+    assert loaded.storage_bytes == s.storage_bytes
+    u = acdf.uniform_2d(500, seed=3)
+    wo = acdf.direction(*WO)
+    np.testing.assert_array_equal(loaded.sample(wo, u)[0], s.sample(wo, u)[0])
+
+
+def test_a_bad_target_fails_as_on_the_command_line(acdf_bin: Path, tmp_path: Path) -> None:
+    done = subprocess.run(
+        [str(acdf_bin), "build", "--material", MATERIAL, "--sampler", "adaptive:chi2",
+         "--target-efficiency=-2", "--out", str(tmp_path / "x.acdfs")],
+        capture_output=True, text=True, check=False,
+    )
+    assert done.returncode != 0
+    with pytest.raises(acdf.InvalidArgumentError) as e:
+        acdf.Sampler(acdf.Material.load(MATERIAL), "adaptive:chi2", target_efficiency=-2)
+    assert str(e.value) in done.stderr
+    assert not (tmp_path / "x.acdfs").exists()

@@ -21,11 +21,13 @@ use std::time::Instant;
 use acdf_core::BxdfSampler;
 use serde::Serialize;
 
+use crate::core::HemisphereGrid;
 use crate::efficiency::{efficiency_of, time_samplers, EfficiencyConfig, Integrands};
-use crate::error::Result;
+use crate::env::Sky;
+use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::registry::{make_sampler_tabulated, AnySampler, SamplerOptions, Tabulation};
-use crate::spec::{SamplerSpec, SimplifierName};
+use crate::spec::{SamplerAt, SamplerSpec, SimplifierName};
 use crate::sweep::default_tolerance;
 
 /// The factor between the tolerances of the stepping phase.
@@ -99,6 +101,126 @@ impl TargetOutcome {
             )
         }
     }
+}
+
+impl TargetOutcome {
+    /// [`Error::TargetNotReached`], saying the best found, when no
+    /// tolerance met the target; `reference` names the reference.
+    pub fn require_reached(&self, reference: &str) -> Result<()> {
+        if self.reached {
+            return Ok(());
+        }
+        let c = &self.chosen;
+        Err(Error::TargetNotReached {
+            sampler: self.sampler.clone(),
+            target: self.target,
+            reference: reference.to_string(),
+            best: format!(
+                "the best found is {:.3} at tolerance {:.3e} ({} tolerances tried)",
+                c.relative_efficiency,
+                c.tolerance,
+                self.tried.len()
+            ),
+        })
+    }
+}
+
+/// A target efficiency, checked: a finite positive number (a fraction of
+/// the reference's efficiency), else [`Error::InvalidArgument`].
+pub fn check_target(target: f64) -> Result<f64> {
+    if target.is_finite() && target > 0.0 {
+        Ok(target)
+    } else {
+        Err(Error::InvalidArgument {
+            what: "target efficiency",
+            value: target.to_string(),
+            reason: "must be a positive number (a fraction of the reference's efficiency)".into(),
+        })
+    }
+}
+
+/// The measurement settings of [`build_for_target`]: the noise-free
+/// variance on a 512 x 256 half-vector grid (within 1.2% of the finest on
+/// the report's materials), no Monte Carlo draws, and the median of 5
+/// timed repeats of 2^11 draws per outgoing direction.
+pub fn single_search_config() -> EfficiencyConfig {
+    EfficiencyConfig {
+        samples_per_direction: 0,
+        grid: HemisphereGrid::HalfVector { n_v: 512, n_x: 256 },
+        timing_samples_per_direction: 1 << 11,
+        timing_repeats: 5,
+        ..EfficiencyConfig::default()
+    }
+}
+
+/// What [`build_for_target`] is doing, for a progress display.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SearchStep {
+    /// Building the reference sampler.
+    Reference,
+    /// Tabulating the material at the sampler's resolution.
+    Tabulating,
+    /// The quadrature of the integrands and of the reference's variance.
+    Quadrature,
+    /// Trying a tolerance.
+    Tolerance(f64),
+}
+
+/// The adaptive sampler `spec` (its simplifier, at `options`' resolution
+/// and cosine mixing; `options.tolerance` is where the search starts) for
+/// `material` whose efficiency is at least `target` times `reference`'s,
+/// under the dome sky and [`single_search_config`]: what `acdf build
+/// --target-efficiency` builds. A reference without `@RES` takes
+/// `options`' resolution. Returns the outcome (check
+/// [`TargetOutcome::require_reached`]) and the chosen sampler, built.
+/// `progress` is called before each step.
+pub fn build_for_target(
+    material: &Material,
+    spec: SamplerSpec,
+    options: &SamplerOptions,
+    reference: SamplerAt,
+    target: f64,
+    mut progress: impl FnMut(SearchStep),
+) -> Result<(TargetOutcome, AnySampler)> {
+    let target = check_target(target)?;
+    let simplifier = spec.simplifier().ok_or_else(|| Error::InvalidArgument {
+        what: "sampler",
+        value: spec.to_string(),
+        reason: "a target efficiency searches the tolerance of an adaptive sampler".into(),
+    })?;
+    let reference_options = SamplerOptions {
+        resolution: reference.resolution.unwrap_or(options.resolution),
+        ..*options
+    };
+    progress(SearchStep::Reference);
+    let config = single_search_config();
+    let reference_tables = Tabulation::new(material, reference_options.resolution);
+    let reference_sampler = make_sampler_tabulated(
+        reference.sampler,
+        material,
+        &reference_options,
+        &reference_tables,
+    )?;
+    drop(reference_tables);
+    progress(SearchStep::Tabulating);
+    let tables = Tabulation::new(material, options.resolution);
+    progress(SearchStep::Quadrature);
+    let integrands = Integrands::new(material.brdf.as_ref(), &Sky::dome(), &config);
+    let relative_variance = integrands.noise_free(&reference_sampler).relative_variance;
+    search_tolerance(
+        material,
+        simplifier,
+        options,
+        &Reference {
+            sampler: &reference_sampler,
+            relative_variance,
+        },
+        &integrands,
+        &tables,
+        &config,
+        target,
+        |t| progress(SearchStep::Tolerance(t)),
+    )
 }
 
 /// The reference a search compares with: a built sampler and its relative

@@ -12,23 +12,30 @@ arrays::
 
 Directions are in the local shading frame (z along the normal, both
 pointing away from the surface); ``wo`` is given and ``wi`` sampled; pdfs
-are per unit solid angle. Large batches run on every core with the
-interpreter released. ``acdf.mitsuba.register()`` adds the BSDF plug-in
-``acdf`` to Mitsuba 3. Failures raise subclasses of :class:`acdf.Error`.
+are per unit solid angle. ``acdf.EnvMap`` and ``acdf.EnvSampler`` do the
+same for environment maps (directions over the sphere, in the map's frame).
+Large batches run on every core with the interpreter released, and Ctrl-C
+interrupts every long call. ``acdf.mitsuba.register()`` adds the BSDF
+plug-in ``acdf`` to Mitsuba 3. Failures raise subclasses of
+:class:`acdf.Error`.
 """
 
 from __future__ import annotations
 
 from ._acdf import (
     BUILTIN_MATERIALS,
+    ENV_SAMPLER_NAMES,
     PARALLEL_MIN,
     SAMPLER_NAMES,
     SIMPLIFIER_NAMES,
+    EnvMap,
+    EnvSampler,
     Material,
     Sampler,
     __version__,
     direction,
     report,
+    sphere_direction,
     sweep,
     uniform_2d,
 )
@@ -37,34 +44,22 @@ from .errors import *  # noqa: F403 (the exception classes)
 
 __all__ = [
     "BUILTIN_MATERIALS",
+    "ENV_SAMPLER_NAMES",
     "PARALLEL_MIN",
     "SAMPLER_NAMES",
     "SIMPLIFIER_NAMES",
+    "EnvMap",
+    "EnvSampler",
     "Material",
     "Sampler",
-    "EnvironmentSampler",
     "direction",
     "report",
+    "sphere_direction",
     "sweep",
     "uniform_2d",
     "__version__",
     *errors.__all__,
 ]
-
-
-class EnvironmentSampler:
-    """Importance sampling of an environment map (reserved).
-
-    The place of the environment-map samplers in this API: built from an
-    HDR image and a sampler name, with ``sample(u)`` and ``pdf(wi)`` over
-    NumPy arrays as :class:`Sampler` has. This build of acdf has none, so
-    constructing one raises :class:`NotAvailableError`.
-    """
-
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        raise errors.NotAvailableError(
-            "environment-map samplers are not available in this build of acdf"
-        )
 
 
 def __getattr__(name: str) -> object:

@@ -19,7 +19,8 @@ __all__ = [
     "ShapeError",
     "DTypeError",
     "SamplerFileError",
-    "NotAvailableError",
+    "EnvMapError",
+    "TargetNotReachedError",
 ]
 
 
@@ -70,6 +71,12 @@ class SamplerFileError(Error, ValueError):
     sampler reads."""
 
 
-class NotAvailableError(Error, NotImplementedError):
-    """A parameter or sampler the API reserves but this build of acdf does
-    not provide yet."""
+class EnvMapError(Error, ValueError):
+    """An environment map that exists but cannot be used: not decodable, not
+    a latitude-longitude map (twice as wide as high), or with NaN, infinite
+    or negative texels (``EnvMap.load(path, repair=True)`` sets those to 0)."""
+
+
+class TargetNotReachedError(Error, ValueError):
+    """No tolerance of the adaptive sampler reaches the target efficiency
+    asked for; the message says the best found."""

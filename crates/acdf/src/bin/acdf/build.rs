@@ -12,12 +12,9 @@ use acdf::registry::{
 use acdf::spec::SamplerSpec;
 use acdf_core::BxdfSampler;
 
-use acdf::core::HemisphereGrid;
-use acdf::efficiency::{EfficiencyConfig, Integrands};
-use acdf::env::Sky;
 use acdf::material::Material;
-use acdf::registry::{make_sampler_tabulated, AnySampler, SamplerOptions, Tabulation};
-use acdf::target::{search_tolerance, Reference};
+use acdf::registry::{AnySampler, SamplerOptions};
+use acdf::target::{build_for_target, SearchStep};
 
 use crate::common::{material, spinner, MaterialArgs, TableArgs, TargetArgs};
 
@@ -93,8 +90,9 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// The adaptive sampler of `spec`'s simplifier whose tolerance keeps
-/// `target` times the reference's efficiency; an error saying what the
-/// best tolerance reached when none does.
+/// `target` times the reference's efficiency
+/// ([`build_for_target`]); an error saying what the best tolerance reached
+/// when none does.
 fn searched(
     a: &Args,
     m: &Material,
@@ -102,65 +100,19 @@ fn searched(
     options: &SamplerOptions,
     target: f64,
 ) -> Result<AnySampler> {
-    let simplifier = spec.simplifier().ok_or_else(|| Error::InvalidArgument {
-        what: "sampler",
-        value: spec.to_string(),
-        reason: "--target-efficiency searches the tolerance of an adaptive sampler".into(),
-    })?;
     let reference = a.target.reference()?;
-    let reference_options = SamplerOptions {
-        resolution: reference.resolution.unwrap_or(options.resolution),
-        ..*options
-    };
     let pb = spinner("building the reference");
-    // The survey's settings: a quadrature within 1.2% of the finest on
-    // the report's materials, and a shorter timing.
-    let config = EfficiencyConfig {
-        samples_per_direction: 0,
-        grid: HemisphereGrid::HalfVector { n_v: 512, n_x: 256 },
-        timing_samples_per_direction: 1 << 11,
-        timing_repeats: 5,
-        ..EfficiencyConfig::default()
-    };
-    let reference_tables = Tabulation::new(m, reference_options.resolution);
-    let reference_sampler =
-        make_sampler_tabulated(reference.sampler, m, &reference_options, &reference_tables)?;
-    drop(reference_tables);
-    pb.set_message("tabulating");
-    let tables = Tabulation::new(m, options.resolution);
-    pb.set_message("quadrature");
-    let integrands = Integrands::new(m.brdf.as_ref(), &Sky::dome(), &config);
-    let relative_variance = integrands.noise_free(&reference_sampler).relative_variance;
-    let result = search_tolerance(
-        m,
-        simplifier,
-        options,
-        &Reference {
-            sampler: &reference_sampler,
-            relative_variance,
-        },
-        &integrands,
-        &tables,
-        &config,
-        target,
-        |t| pb.set_message(format!("{spec}: tolerance {t:.3e}")),
-    );
+    let result = build_for_target(m, spec, options, reference, target, |step| {
+        pb.set_message(match step {
+            SearchStep::Reference => "building the reference".to_string(),
+            SearchStep::Tabulating => "tabulating".to_string(),
+            SearchStep::Quadrature => "quadrature".to_string(),
+            SearchStep::Tolerance(t) => format!("{spec}: tolerance {t:.3e}"),
+        })
+    });
     pb.finish_and_clear();
     let (outcome, sampler) = result?;
-    if !outcome.reached {
-        let c = &outcome.chosen;
-        return Err(Error::TargetNotReached {
-            sampler: spec.to_string(),
-            target,
-            reference: reference.to_string(),
-            best: format!(
-                "the best found is {:.3} at tolerance {:.3e} ({} tolerances tried)",
-                c.relative_efficiency,
-                c.tolerance,
-                outcome.tried.len()
-            ),
-        });
-    }
+    outcome.require_reached(&reference.to_string())?;
     println!("{}", outcome.describe(&reference.to_string()));
     Ok(sampler)
 }

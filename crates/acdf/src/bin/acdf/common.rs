@@ -224,15 +224,9 @@ pub struct TargetArgs {
 impl TargetArgs {
     /// The target, checked: a finite positive number.
     pub fn target(&self) -> Result<Option<f64>> {
-        match self.target_efficiency {
-            Some(e) if !(e.is_finite() && e > 0.0) => Err(Error::InvalidArgument {
-                what: "target efficiency",
-                value: e.to_string(),
-                reason: "must be a positive number (a fraction of the reference's efficiency)"
-                    .into(),
-            }),
-            t => Ok(t),
-        }
+        self.target_efficiency
+            .map(acdf::target::check_target)
+            .transpose()
     }
 
     /// The reference: `--reference`, or the default for the mode.
