@@ -33,7 +33,7 @@ fourth moment by the same quadrature. Where much of the variance comes from draw
 in --samples, the draws cannot show it, the estimate usually comes out low and the ± is large.
   firefly          the largest weight f cos θ_i / p at a quadrature point over the mean weight \
 (1 when p is proportional to f cos θ_i), the largest over the directions.
-  ns/sample        the sampler's own work per draw, sample + pdf, on one thread: the median of \
+  ns/sample        the sampler's own work per draw, sample + pdf, on one thread: the fastest of \
 --timing-repeats repeats of 12 x --timing-samples draws, the samplers of a material in turns.
   ns/eval          one BRDF evaluation at the drawn directions (for nbrdf: materials a lookup \
 in the baked MERL table): the same for every sampler, so not part of the efficiency.

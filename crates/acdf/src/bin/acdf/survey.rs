@@ -22,7 +22,7 @@ use crate::common::{bar, parse_list, write_file, write_json, MeasureArgs};
 pub const COLUMNS: &str = "\
 For each material (nbrdf:NAME, baked into a MERL table) and sampler: storage; compression, the \
 reference's storage over the sampler's; the noise-free relative variance and firefly measure \
-(quadrature, as in `acdf report --help`); the sampler's own time (sample + pdf, median of \
+(quadrature, as in `acdf report --help`); the sampler's own time (sample + pdf, fastest of \
 --timing-repeats repeats, the material's samplers in turns); relative efficiency, \
 (r_ref t_ref) / (r t), split into its variance part r_ref / r and its time part t_ref / t; \
 build time. The samplers: the reference (default uniform@32x16x256x32), uniform at the \
@@ -52,10 +52,10 @@ pub struct Args {
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
     /// Draws per outgoing direction in each timed repeat.
-    #[arg(long, value_name = "N", default_value_t = 1 << 11)]
+    #[arg(long, value_name = "N", default_value_t = 1 << 9)]
     timing_samples: usize,
-    /// Timed repeats per sampler, the median kept.
-    #[arg(long, value_name = "N", default_value_t = 5)]
+    /// Timed repeats per sampler, the fastest kept.
+    #[arg(long, value_name = "N", default_value_t = 20)]
     timing_repeats: usize,
     /// Quadrature cells per outgoing direction, θ_h rows x φ_h columns
     /// over the half vector (coarser than report's default: the relative

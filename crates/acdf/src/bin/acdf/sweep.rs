@@ -57,10 +57,10 @@ struct SweepMeasureArgs {
     #[arg(long, value_name = "N", default_value_t = 1 << 14)]
     samples: usize,
     /// Draws per outgoing direction in each timed repeat.
-    #[arg(long, value_name = "N", default_value_t = 1 << 11)]
+    #[arg(long, value_name = "N", default_value_t = 1 << 9)]
     timing_samples: usize,
-    /// Timed repeats per sampler, the median kept; the samplers take turns.
-    #[arg(long, value_name = "N", default_value_t = 7, alias = "timing-passes")]
+    /// Timed repeats per sampler, the fastest kept; the samplers take turns.
+    #[arg(long, value_name = "N", default_value_t = 28, alias = "timing-passes")]
     timing_repeats: usize,
     /// Quadrature cells per outgoing direction, θ_h rows x φ_h columns
     /// over the half vector.
