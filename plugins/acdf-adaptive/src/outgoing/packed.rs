@@ -1,0 +1,307 @@
+//! A slice of the outgoing sampler in its stored form: an
+//! [`AdaptiveCdf2D`]'s kept vertices as 16-bit grid indices and 16-bit CDF
+//! values, sampled and evaluated in that form.
+
+use crate::AdaptiveCdf2D;
+use acdf_core::{Error, Result};
+
+/// The largest quantised CDF value: a CDF value c is stored as
+/// round(c · 65535).
+pub(crate) const Q: u16 = u16::MAX;
+const QF: f32 = Q as f32;
+
+/// A piecewise-linear 2D CDF over the unit square (x → φ_h across
+/// `n_x` columns, y → θ_h across `n_y` rows) with its vertices on the
+/// tabulation grid: a marginal over y and, per marginal segment, a
+/// conditional over x. Positions are grid indices (vertex k at
+/// `pos[k] / n`), CDF values are multiples of 1/65535.
+///
+/// Every segment whose table cells hold mass keeps at least 1/65535 of it
+/// ([`quantise`]), so the density is positive wherever the tabulated table
+/// is. A marginal segment without mass has no conditional (empty).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PackedCdf2D {
+    pub(crate) marginal_pos: Vec<u16>,
+    pub(crate) marginal_cdf: Vec<u16>,
+    /// Conditional j holds vertices `offsets[j] .. offsets[j + 1]`; one
+    /// entry per marginal vertex.
+    pub(crate) offsets: Vec<u16>,
+    pub(crate) conditional_pos: Vec<u16>,
+    pub(crate) conditional_cdf: Vec<u16>,
+}
+
+/// The segment of a curve holding `t` (in grid units): the number of inner
+/// vertices at or below it.
+#[inline(always)]
+fn segment_of(pos: &[u16], t: f32) -> usize {
+    let inner = &pos[1..pos.len() - 1];
+    inner.iter().filter(|&&p| p as f32 <= t).count()
+}
+
+/// The segment a draw `us` (in units of 1/65535) falls in: the last vertex
+/// whose CDF is at or below it (zero-mass segments are never chosen).
+#[inline(always)]
+fn draw_segment(cdf: &[u16], us: f32) -> usize {
+    let inner = &cdf[1..cdf.len() - 1];
+    inner.iter().filter(|&&c| c as f32 <= us).count()
+}
+
+/// Invert one curve at u in [0, 1): (position in [0, 1), segment).
+#[inline(always)]
+fn sample_curve(pos: &[u16], cdf: &[u16], n: f32, u: f32) -> (f32, usize) {
+    let us = u * QF;
+    let j = draw_segment(cdf, us);
+    let (c0, c1) = (cdf[j] as f32, cdf[j + 1] as f32);
+    let (p0, p1) = (pos[j] as f32, pos[j + 1] as f32);
+    let frac = if c1 > c0 {
+        ((us - c0) / (c1 - c0)).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    let x = (p0 + frac * (p1 - p0)) / n;
+    (x.min(acdf_core::ONE_MINUS_EPSILON), j)
+}
+
+/// The density of segment j of a curve over [0, 1).
+#[inline(always)]
+fn density(pos: &[u16], cdf: &[u16], n: f32, j: usize) -> f32 {
+    let mass = (cdf[j + 1] - cdf[j]) as f32 / QF;
+    let width = (pos[j + 1] - pos[j]) as f32 / n;
+    mass / width
+}
+
+impl PackedCdf2D {
+    /// The stored form of `d`, built from `values` (row-major, `n_y` rows of
+    /// `n_x`): the vertices `d` kept, with CDF values recomputed from the
+    /// table in f64 and quantised. Errors when `d`'s vertices are off the
+    /// grid or too many for 16-bit indices.
+    pub fn from_adaptive(d: &AdaptiveCdf2D, values: &[f32], n_x: usize, n_y: usize) -> Result<Self> {
+        let too_many = |what: &str| Error::InvalidParameter {
+            name: "outgoing slice",
+            reason: format!("{what} do not fit 16-bit indices"),
+        };
+        if n_x > Q as usize || n_y > Q as usize {
+            return Err(too_many("the half-vector cells"));
+        }
+        let rows: Vec<f64> = values
+            .chunks_exact(n_x)
+            .map(|r| r.iter().map(|&v| v as f64).sum())
+            .collect();
+        let total: f64 = rows.iter().sum();
+        let m = d.marginal_vertex_count();
+        let marginal_pos = grid_indices(&d.marginal[..m], n_y)?;
+        if !(total > 0.0) {
+            // No mass at all: the uniform density.
+            return Ok(PackedCdf2D {
+                marginal_pos: vec![0, n_y as u16],
+                marginal_cdf: vec![0, Q],
+                offsets: vec![0, 2],
+                conditional_pos: vec![0, n_x as u16],
+                conditional_cdf: vec![0, Q],
+            });
+        }
+        let segment_mass: Vec<f64> = marginal_pos
+            .windows(2)
+            .map(|w| rows[w[0] as usize..w[1] as usize].iter().sum())
+            .collect();
+        let marginal_cdf = quantise(&segment_mass);
+        let mut offsets = vec![0u16];
+        let (mut conditional_pos, mut conditional_cdf) = (Vec::new(), Vec::new());
+        for (j, w) in marginal_pos.windows(2).enumerate() {
+            if marginal_cdf[j + 1] > marginal_cdf[j] {
+                let (a, b) = (d.offsets[j] as usize, d.offsets[j + 1] as usize);
+                let xs = &d.conditionals[2 * a..2 * a + (b - a)];
+                let pos = if xs.len() >= 2 {
+                    grid_indices(xs, n_x)?
+                } else {
+                    vec![0, n_x as u16]
+                };
+                let mut columns = vec![0.0f64; n_x];
+                for row in values[w[0] as usize * n_x..w[1] as usize * n_x].chunks_exact(n_x) {
+                    for (c, &v) in columns.iter_mut().zip(row) {
+                        *c += v as f64;
+                    }
+                }
+                let masses: Vec<f64> = pos
+                    .windows(2)
+                    .map(|p| columns[p[0] as usize..p[1] as usize].iter().sum())
+                    .collect();
+                conditional_cdf.extend(quantise(&masses));
+                conditional_pos.extend(pos);
+            }
+            let end = conditional_pos.len();
+            offsets.push(u16::try_from(end).map_err(|_| too_many("the conditional vertices"))?);
+        }
+        Ok(PackedCdf2D {
+            marginal_pos,
+            marginal_cdf,
+            offsets,
+            conditional_pos,
+            conditional_cdf,
+        })
+    }
+
+    /// Conditional j's positions and CDF values.
+    #[inline(always)]
+    fn conditional(&self, j: usize) -> (&[u16], &[u16]) {
+        let (a, b) = (self.offsets[j] as usize, self.offsets[j + 1] as usize);
+        (&self.conditional_pos[a..b], &self.conditional_cdf[a..b])
+    }
+
+    /// Draw (x, y) from u in [0, 1)^2: y from the marginal with u.y, x from
+    /// the conditional of y's segment with u.x.
+    #[inline]
+    pub fn sample(&self, u_x: f32, u_y: f32, n_x: f32, n_y: f32) -> (f32, f32) {
+        let (y, j) = sample_curve(&self.marginal_pos, &self.marginal_cdf, n_y, u_y);
+        let (pos, cdf) = self.conditional(j);
+        let (x, _) = sample_curve(pos, cdf, n_x, u_x);
+        (x, y)
+    }
+
+    /// The density at (x, y) in [0, 1)^2.
+    #[inline]
+    pub fn pdf(&self, x: f32, y: f32, n_x: f32, n_y: f32) -> f32 {
+        let j = segment_of(&self.marginal_pos, y * n_y);
+        let (c0, c1) = (self.marginal_cdf[j], self.marginal_cdf[j + 1]);
+        if c1 == c0 {
+            return 0.0;
+        }
+        let py = density(&self.marginal_pos, &self.marginal_cdf, n_y, j);
+        let (pos, cdf) = self.conditional(j);
+        let k = segment_of(pos, x * n_x);
+        py * density(pos, cdf, n_x, k)
+    }
+
+    /// Bytes kept: two bytes per stored value.
+    pub fn storage_bytes(&self) -> usize {
+        2 * (self.marginal_pos.len()
+            + self.marginal_cdf.len()
+            + self.offsets.len()
+            + self.conditional_pos.len()
+            + self.conditional_cdf.len())
+    }
+
+    /// The number of marginal vertices.
+    pub fn marginal_vertex_count(&self) -> usize {
+        self.marginal_pos.len()
+    }
+
+    /// The number of conditional vertices, and of non-empty conditionals.
+    pub fn conditional_vertices(&self) -> (usize, usize) {
+        let stored = self.offsets.windows(2).filter(|w| w[1] > w[0]).count();
+        (self.conditional_pos.len(), stored)
+    }
+
+    /// Check what a decoder read: every curve runs over the grid from 0 to
+    /// n with increasing positions and from 0 to 65535 with non-decreasing
+    /// CDF values; each positive-mass marginal segment has a conditional.
+    pub fn validate(&self, n_x: usize, n_y: usize) -> std::result::Result<(), String> {
+        check_curve("marginal", &self.marginal_pos, &self.marginal_cdf, n_y)?;
+        let m = self.marginal_pos.len();
+        if self.offsets.len() != m || self.offsets[0] != 0 {
+            return Err(format!("{} offsets for {m} marginal vertices", self.offsets.len()));
+        }
+        if self.offsets.windows(2).any(|w| w[1] < w[0]) {
+            return Err("offsets decrease".into());
+        }
+        let end = self.offsets[m - 1] as usize;
+        if end != self.conditional_pos.len() || end != self.conditional_cdf.len() {
+            return Err(format!("offsets end at {end}, the conditionals hold {}", self.conditional_pos.len()));
+        }
+        for j in 0..m - 1 {
+            let (pos, cdf) = self.conditional(j);
+            let positive = self.marginal_cdf[j + 1] > self.marginal_cdf[j];
+            match (positive, pos.len()) {
+                (false, 0) => {}
+                (false, _) => return Err(format!("conditional {j} of an empty segment")),
+                (true, _) => check_curve("conditional", pos, cdf, n_x)?,
+            }
+        }
+        Ok(())
+    }
+}
+
+fn check_curve(what: &str, pos: &[u16], cdf: &[u16], n: usize) -> std::result::Result<(), String> {
+    let m = pos.len();
+    if m < 2 || cdf.len() != m {
+        return Err(format!("{what}: {m} positions and {} CDF values", cdf.len()));
+    }
+    if pos[0] != 0 || pos[m - 1] as usize != n || cdf[0] != 0 || cdf[m - 1] != Q {
+        return Err(format!("{what}: does not run from (0, 0) to ({n}, {Q})"));
+    }
+    if pos.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(format!("{what}: positions not increasing"));
+    }
+    if cdf.windows(2).any(|w| w[1] < w[0]) {
+        return Err(format!("{what}: CDF decreasing"));
+    }
+    Ok(())
+}
+
+/// Grid indices of positions k / n (exact for the vertices a simplifier
+/// keeps of a tabulated CDF).
+fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
+    xs.iter()
+        .map(|&x| {
+            let t = x as f64 * n as f64;
+            let k = t.round();
+            if (t - k).abs() > 1e-3 || k < 0.0 || k > n as f64 {
+                Err(Error::InvalidParameter {
+                    name: "outgoing slice",
+                    reason: format!("vertex at {x} is not on the grid of {n} cells"),
+                })
+            } else {
+                Ok(k as u16)
+            }
+        })
+        .collect()
+}
+
+/// Quantised CDF values (0 to 65535) of segments with these masses (not all
+/// zero): round(c · 65535) of the exact CDF c, except that a segment with
+/// mass keeps at least one unit and a segment without keeps none.
+pub(crate) fn quantise(masses: &[f64]) -> Vec<u16> {
+    let total: f64 = masses.iter().sum();
+    let mut positive_after = vec![0u32; masses.len() + 1];
+    for i in (0..masses.len()).rev() {
+        positive_after[i] = positive_after[i + 1] + (masses[i] > 0.0) as u32;
+    }
+    let mut out = Vec::with_capacity(masses.len() + 1);
+    out.push(0u16);
+    let mut running = 0.0f64;
+    for (i, &mass) in masses.iter().enumerate() {
+        running += mass;
+        let previous = *out.last().expect("one value") as u32;
+        let q = if mass > 0.0 {
+            let target = (running / total * Q as f64).round() as u32;
+            target
+                .max(previous + 1)
+                .min(Q as u32 - positive_after[i + 1])
+        } else {
+            previous
+        };
+        out.push(q as u16);
+    }
+    // The last value is Q whenever a positive segment is last; after a
+    // trailing run of empty segments it is carried to Q by the last
+    // positive one (its bound is Q), so it always ends at Q.
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantised_cdfs_keep_every_positive_segment() {
+        let masses = [1.0, 1e-12, 0.0, 3.0, 1e-9, 0.0];
+        let q = quantise(&masses);
+        assert_eq!(q[0], 0);
+        assert_eq!(*q.last().unwrap(), Q);
+        for (i, &m) in masses.iter().enumerate() {
+            assert_eq!(q[i + 1] > q[i], m > 0.0, "segment {i}: {q:?}");
+        }
+        // Close to the exact CDF where the masses are large.
+        assert!((q[1] as f64 / Q as f64 - 0.25).abs() < 2e-5);
+    }
+}
