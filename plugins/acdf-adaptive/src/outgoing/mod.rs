@@ -398,26 +398,55 @@ impl OutgoingSampler {
         }
     }
 
-    /// A table draw for a valid wo.
-    fn sample_table(&self, wo: Vec3, u: Vec2) -> Vec3 {
+    /// A table draw for a valid wo: wi, and the table density when the
+    /// drawn point certainly has the density `pdf` would find for wi (see
+    /// [`CELL_MARGIN`]), `None` when it must be recomputed.
+    #[inline(always)]
+    fn sample_table(&self, wo: Vec3, u: Vec2) -> (Vec3, Option<f32>) {
         let (k, t) = self.blend_of(wo);
         // Slice k with probability 1 - t, slice k + 1 with t.
-        let (slice, ux) = if u.x < 1.0 - t {
-            (k, u.x / (1.0 - t))
+        let (drawn, other, ux, w_drawn) = if u.x < 1.0 - t {
+            (k, k + 1, u.x / (1.0 - t), 1.0 - t)
         } else {
-            (k + 1, (u.x - (1.0 - t)) / t)
+            (k + 1, k, (u.x - (1.0 - t)) / t, t)
         };
-        let (nx, ny) = (self.n_phi_h as f32, self.n_theta_h as f32);
-        let (x, v) = self.slices[slice].sample(clamp_unit(ux), u.y, nx, ny);
+        let n = (self.n_phi_h as f32, self.n_theta_h as f32);
+        let d = self.slices[drawn].sample(clamp_unit(ux), u.y, n, CELL_MARGIN);
+        let (x, v) = d.p;
+        let mut p_xv = w_drawn * d.pdf;
+        let mut same = d.same_around;
+        let w_other = 1.0 - w_drawn;
+        if w_other > 0.0 {
+            let o = self.slices[other].locate(x, v, n, CELL_MARGIN);
+            p_xv += w_other * o.pdf;
+            same &= o.same_around;
+        }
         let (sin_h, cos_h) = self.map.angles(v);
         let (sin_p, cos_p) = sin_cos_turns(x);
         let r = Self::rotation(wo);
         let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
-        let h = Vec3::new(r.x * local.x - r.y * local.y, r.y * local.x + r.x * local.y, local.z);
-        let wi = 2.0 * wo.dot(h) * h - wo;
-        wi.normalize_or_zero()
+        let h = Vec3::new(
+            r.x * local.x - r.y * local.y,
+            r.y * local.x + r.x * local.y,
+            local.z,
+        );
+        let wo_h = wo.dot(h);
+        let wi = (2.0 * wo_h * h - wo).normalize_or_zero();
+        let geometry = (wo_h >= 0.125) & (wo_h * sin_h >= 1.0 / 512.0) & (v >= self.map.cap_top());
+        let table = p_xv / (self.map.jacobian(v, sin_h) * 4.0 * wo_h);
+        let shortcut = same & geometry & table.is_finite() & (table > 0.0);
+        (wi, shortcut.then_some(table))
     }
 }
+
+/// The half-widths (x, v), in unit coordinates, of the box around a draw
+/// over which both blended slices must be constant for `sample` to report
+/// the drawn cells' density instead of recomputing it from wi: the
+/// tabulated sampler's margins (`acdf_tabulated`'s `CELL_MARGIN`, over six
+/// and three and a half times the error of the recomputed coordinates
+/// where wo·h >= 1/8 and (wo·h) sin θ_h >= 1/512, outside the polar cap
+/// row).
+const CELL_MARGIN: (f32, f32) = (1.0 / 32768.0, 1.0 / 65536.0);
 
 impl BxdfSampler for OutgoingSampler {
     fn name(&self) -> &str {
@@ -433,8 +462,9 @@ impl BxdfSampler for OutgoingSampler {
         }
         let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
         let a = self.cosine_fraction;
-        let wi = if u.x < a {
-            square_to_cosine_hemisphere(Vec2::new(clamp_unit(u.x / a), u.y))
+        let (wi, table) = if u.x < a {
+            let wi = square_to_cosine_hemisphere(Vec2::new(clamp_unit(u.x / a), u.y));
+            (wi, None)
         } else {
             let ux = if a > 0.0 {
                 clamp_unit((u.x - a) / (1.0 - a))
@@ -446,7 +476,11 @@ impl BxdfSampler for OutgoingSampler {
         if !(wi.z > 0.0) {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
+        let pdf = match table {
+            Some(table) if a > 0.0 => (1.0 - a) * table + a * cosine_hemisphere_pdf(wi),
+            Some(table) => table,
+            None => self.pdf(wo, wi),
+        };
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
     }
 

@@ -10,6 +10,15 @@ use acdf_core::{Error, Result};
 pub(crate) const Q: u16 = u16::MAX;
 const QF: f32 = Q as f32;
 
+/// A point of a [`PackedCdf2D`], its density, and whether the density is
+/// the same over a box around it.
+#[derive(Debug, Clone, Copy)]
+pub struct Located {
+    pub p: (f32, f32),
+    pub pdf: f32,
+    pub same_around: bool,
+}
+
 /// A piecewise-linear 2D CDF over the unit square (x → φ_h across
 /// `n_x` columns, y → θ_h across `n_y` rows) with its vertices on the
 /// tabulation grid: a marginal over y and, per marginal segment, a
@@ -30,27 +39,29 @@ pub struct PackedCdf2D {
     pub(crate) conditional_cdf: Vec<u16>,
 }
 
+/// The number of `values` at or below `t` (t >= 0 in the values' units):
+/// integer compares, which the compiler runs eight at a time.
+#[inline(always)]
+fn count_at_or_below(values: &[u16], t: f32) -> usize {
+    // For an integer p, p <= t exactly when p <= floor(t).
+    let k = t.max(0.0).min(Q as f32) as u16;
+    values.iter().filter(|&&p| p <= k).count()
+}
+
 /// The segment of a curve holding `t` (in grid units): the number of inner
 /// vertices at or below it.
 #[inline(always)]
 fn segment_of(pos: &[u16], t: f32) -> usize {
-    let inner = &pos[1..pos.len() - 1];
-    inner.iter().filter(|&&p| p as f32 <= t).count()
+    count_at_or_below(&pos[1..pos.len() - 1], t)
 }
 
-/// The segment a draw `us` (in units of 1/65535) falls in: the last vertex
-/// whose CDF is at or below it (zero-mass segments are never chosen).
-#[inline(always)]
-fn draw_segment(cdf: &[u16], us: f32) -> usize {
-    let inner = &cdf[1..cdf.len() - 1];
-    inner.iter().filter(|&&c| c as f32 <= us).count()
-}
-
-/// Invert one curve at u in [0, 1): (position in [0, 1), segment).
+/// Invert one curve at u in [0, 1): (position in [0, 1), segment). The
+/// segment is the last vertex whose CDF is at or below u (zero-mass
+/// segments are never chosen).
 #[inline(always)]
 fn sample_curve(pos: &[u16], cdf: &[u16], n: f32, u: f32) -> (f32, usize) {
     let us = u * QF;
-    let j = draw_segment(cdf, us);
+    let j = count_at_or_below(&cdf[1..cdf.len() - 1], us);
     let (c0, c1) = (cdf[j] as f32, cdf[j + 1] as f32);
     let (p0, p1) = (pos[j] as f32, pos[j + 1] as f32);
     let frac = if c1 > c0 {
@@ -68,6 +79,13 @@ fn density(pos: &[u16], cdf: &[u16], n: f32, j: usize) -> f32 {
     let mass = (cdf[j + 1] - cdf[j]) as f32 / QF;
     let width = (pos[j + 1] - pos[j]) as f32 / n;
     mass / width
+}
+
+/// Whether [t - margin, t + margin] lies inside segment j (all in grid
+/// units).
+#[inline(always)]
+fn inside(pos: &[u16], j: usize, t: f32, margin: f32) -> bool {
+    (pos[j] as f32 <= t - margin) & (t + margin < pos[j + 1] as f32)
 }
 
 impl PackedCdf2D {
@@ -149,27 +167,54 @@ impl PackedCdf2D {
     }
 
     /// Draw (x, y) from u in [0, 1)^2: y from the marginal with u.y, x from
-    /// the conditional of y's segment with u.x.
+    /// the conditional of y's segment with u.x; with the density there and
+    /// whether it is the same over the box (x, y) ± `margin` (in unit
+    /// coordinates).
     #[inline]
-    pub fn sample(&self, u_x: f32, u_y: f32, n_x: f32, n_y: f32) -> (f32, f32) {
+    pub fn sample(&self, u_x: f32, u_y: f32, n: (f32, f32), margin: (f32, f32)) -> Located {
+        let (n_x, n_y) = n;
         let (y, j) = sample_curve(&self.marginal_pos, &self.marginal_cdf, n_y, u_y);
         let (pos, cdf) = self.conditional(j);
-        let (x, _) = sample_curve(pos, cdf, n_x, u_x);
-        (x, y)
+        let (x, k) = sample_curve(pos, cdf, n_x, u_x);
+        Located {
+            p: (x, y),
+            pdf: density(&self.marginal_pos, &self.marginal_cdf, n_y, j) * density(pos, cdf, n_x, k),
+            same_around: inside(&self.marginal_pos, j, y * n_y, margin.1 * n_y)
+                & inside(pos, k, x * n_x, margin.0 * n_x),
+        }
     }
 
     /// The density at (x, y) in [0, 1)^2.
     #[inline]
     pub fn pdf(&self, x: f32, y: f32, n_x: f32, n_y: f32) -> f32 {
-        let j = segment_of(&self.marginal_pos, y * n_y);
+        self.locate(x, y, (n_x, n_y), (0.0, 0.0)).pdf
+    }
+
+    /// The density at (x, y) in [0, 1)^2 and whether it is the same over
+    /// the box (x, y) ± `margin`.
+    #[inline]
+    pub fn locate(&self, x: f32, y: f32, n: (f32, f32), margin: (f32, f32)) -> Located {
+        let (n_x, n_y) = n;
+        let ty = y * n_y;
+        let j = segment_of(&self.marginal_pos, ty);
         let (c0, c1) = (self.marginal_cdf[j], self.marginal_cdf[j + 1]);
+        let same_y = inside(&self.marginal_pos, j, ty, margin.1 * n_y);
         if c1 == c0 {
-            return 0.0;
+            return Located {
+                p: (x, y),
+                pdf: 0.0,
+                same_around: same_y,
+            };
         }
         let py = density(&self.marginal_pos, &self.marginal_cdf, n_y, j);
         let (pos, cdf) = self.conditional(j);
-        let k = segment_of(pos, x * n_x);
-        py * density(pos, cdf, n_x, k)
+        let tx = x * n_x;
+        let k = segment_of(pos, tx);
+        Located {
+            p: (x, y),
+            pdf: py * density(pos, cdf, n_x, k),
+            same_around: same_y & inside(pos, k, tx, margin.0 * n_x),
+        }
     }
 
     /// Bytes kept: two bytes per stored value.
