@@ -204,7 +204,7 @@ pub fn survey_material(
     let reference_rv = integrands.noise_free(&entries[0].sampler).relative_variance;
     let (outcome, sampler) = search_tolerance(
         material,
-        target_simplifier(),
+        SamplerSpec::adaptive(target_simplifier()),
         &SamplerOptions {
             tolerance: start_tolerance,
             ..config.options

@@ -192,7 +192,7 @@ pub fn run_sweep(
         for &simplifier in plan.simplifiers {
             let (outcome, sampler) = search_tolerance(
                 material,
-                simplifier,
+                SamplerSpec::adaptive(simplifier),
                 base,
                 &Reference {
                     sampler: reference,

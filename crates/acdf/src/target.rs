@@ -108,7 +108,9 @@ pub struct Reference<'a> {
     pub relative_variance: f64,
 }
 
-/// Search the tolerance of `simplifier` (at `base`'s resolution and cosine
+/// Search the tolerance of the sampler `spec` (`adaptive:SIMPLIFIER` or
+/// `outgoing:SIMPLIFIER`; a family without simplifiers is searched as its
+/// first) (at `base`'s resolution and cosine
 /// mixing) for the smallest sampler of `material` whose efficiency is at
 /// least `target` times `reference`'s, on `integrands`, building the
 /// candidates from `tables` (see the module documentation). Returns the outcome and the chosen sampler, built.
@@ -116,7 +118,7 @@ pub struct Reference<'a> {
 #[allow(clippy::too_many_arguments)]
 pub fn search_tolerance(
     material: &Material,
-    simplifier: SimplifierName,
+    spec: SamplerSpec,
     base: &SamplerOptions,
     reference: &Reference,
     integrands: &Integrands,
@@ -125,7 +127,9 @@ pub fn search_tolerance(
     target: f64,
     mut progress: impl FnMut(f64),
 ) -> Result<(TargetOutcome, AnySampler)> {
-    let spec = SamplerSpec::adaptive(simplifier);
+    let simplifier = spec
+        .simplifier()
+        .unwrap_or_else(SimplifierName::default_simplifier);
     // Only the samplers' own work is compared.
     let config = &EfficiencyConfig {
         time_eval: false,

@@ -35,35 +35,69 @@ pub struct PackedCdf2D {
     /// Conditional j holds vertices `offsets[j] .. offsets[j + 1]`; one
     /// entry per marginal vertex.
     pub(crate) offsets: Vec<u16>,
-    pub(crate) conditional_pos: Vec<u16>,
+    /// Conditional positions in 8 bits (at most 255 columns).
+    pub(crate) conditional_pos: Vec<u8>,
     pub(crate) conditional_cdf: Vec<u16>,
 }
 
-/// The number of `values` at or below `t` (t >= 0 in the values' units):
-/// integer compares, which the compiler runs eight at a time.
-#[inline(always)]
-fn count_at_or_below(values: &[u16], t: f32) -> usize {
-    // For an integer p, p <= t exactly when p <= floor(t).
-    let k = t.max(0.0).min(Q as f32) as u16;
-    values.iter().filter(|&&p| p <= k).count()
+/// A stored vertex position or CDF value: an unsigned integer that
+/// counts the stored values at or below a point in 16-bit or 8-bit
+/// lanes.
+pub(crate) trait Stored: Copy {
+    /// The value as a float.
+    fn float(self) -> f32;
+    /// The number of `values` at or below `t` (t >= 0 in the values'
+    /// units): integer compares, which the compiler runs in SIMD lanes.
+    fn count_at_or_below(values: &[Self], t: f32) -> usize;
+}
+
+impl Stored for u16 {
+    #[inline(always)]
+    fn float(self) -> f32 {
+        self as f32
+    }
+    #[inline(always)]
+    fn count_at_or_below(values: &[u16], t: f32) -> usize {
+        // For an integer p, p <= t exactly when p <= floor(t); a curve
+        // has fewer than 65536 vertices.
+        let k = t.max(0.0).min(u16::MAX as f32) as u16;
+        values
+            .iter()
+            .fold(0u16, |n, &p| n.wrapping_add((p <= k) as u16)) as usize
+    }
+}
+
+impl Stored for u8 {
+    #[inline(always)]
+    fn float(self) -> f32 {
+        self as f32
+    }
+    #[inline(always)]
+    fn count_at_or_below(values: &[u8], t: f32) -> usize {
+        // At most 254 inner vertices over 255 columns.
+        let k = t.max(0.0).min(u8::MAX as f32) as u8;
+        values
+            .iter()
+            .fold(0u8, |n, &p| n.wrapping_add((p <= k) as u8)) as usize
+    }
 }
 
 /// The segment of a curve holding `t` (in grid units): the number of inner
 /// vertices at or below it.
 #[inline(always)]
-fn segment_of(pos: &[u16], t: f32) -> usize {
-    count_at_or_below(&pos[1..pos.len() - 1], t)
+fn segment_of<P: Stored>(pos: &[P], t: f32) -> usize {
+    P::count_at_or_below(&pos[1..pos.len() - 1], t)
 }
 
 /// Invert one curve at u in [0, 1): (position in [0, 1), segment). The
 /// segment is the last vertex whose CDF is at or below u (zero-mass
 /// segments are never chosen).
 #[inline(always)]
-fn sample_curve(pos: &[u16], cdf: &[u16], n: f32, u: f32) -> (f32, usize) {
+fn sample_curve<P: Stored>(pos: &[P], cdf: &[u16], n: f32, u: f32) -> (f32, usize) {
     let us = u * QF;
-    let j = count_at_or_below(&cdf[1..cdf.len() - 1], us);
+    let j = u16::count_at_or_below(&cdf[1..cdf.len() - 1], us);
     let (c0, c1) = (cdf[j] as f32, cdf[j + 1] as f32);
-    let (p0, p1) = (pos[j] as f32, pos[j + 1] as f32);
+    let (p0, p1) = (pos[j].float(), pos[j + 1].float());
     let frac = if c1 > c0 {
         ((us - c0) / (c1 - c0)).clamp(0.0, 1.0)
     } else {
@@ -75,17 +109,17 @@ fn sample_curve(pos: &[u16], cdf: &[u16], n: f32, u: f32) -> (f32, usize) {
 
 /// The density of segment j of a curve over [0, 1).
 #[inline(always)]
-fn density(pos: &[u16], cdf: &[u16], n: f32, j: usize) -> f32 {
-    let mass = (cdf[j + 1] - cdf[j]) as f32 / QF;
-    let width = (pos[j + 1] - pos[j]) as f32 / n;
-    mass / width
+fn density<P: Stored>(pos: &[P], cdf: &[u16], n: f32, j: usize) -> f32 {
+    let mass = (cdf[j + 1] - cdf[j]) as f32;
+    let width = pos[j + 1].float() - pos[j].float();
+    (mass * n) / (width * QF)
 }
 
 /// Whether [t - margin, t + margin] lies inside segment j (all in grid
 /// units).
 #[inline(always)]
-fn inside(pos: &[u16], j: usize, t: f32, margin: f32) -> bool {
-    (pos[j] as f32 <= t - margin) & (t + margin < pos[j + 1] as f32)
+fn inside<P: Stored>(pos: &[P], j: usize, t: f32, margin: f32) -> bool {
+    (pos[j].float() <= t - margin) & (t + margin < pos[j + 1].float())
 }
 
 impl PackedCdf2D {
@@ -98,8 +132,8 @@ impl PackedCdf2D {
             name: "outgoing slice",
             reason: format!("{what} do not fit 16-bit indices"),
         };
-        if n_x > Q as usize || n_y > Q as usize {
-            return Err(too_many("the half-vector cells"));
+        if n_x > u8::MAX as usize || n_y > Q as usize {
+            return Err(too_many("more than 255 phi_h or 65535 theta_h cells"));
         }
         let rows: Vec<f64> = values
             .chunks_exact(n_x)
@@ -114,7 +148,7 @@ impl PackedCdf2D {
                 marginal_pos: vec![0, n_y as u16],
                 marginal_cdf: vec![0, Q],
                 offsets: vec![0, 2],
-                conditional_pos: vec![0, n_x as u16],
+                conditional_pos: vec![0, n_x as u8],
                 conditional_cdf: vec![0, Q],
             });
         }
@@ -145,7 +179,7 @@ impl PackedCdf2D {
                     .map(|p| columns[p[0] as usize..p[1] as usize].iter().sum())
                     .collect();
                 conditional_cdf.extend(quantise(&masses));
-                conditional_pos.extend(pos);
+                conditional_pos.extend(pos.iter().map(|&p| p as u8));
             }
             let end = conditional_pos.len();
             offsets.push(u16::try_from(end).map_err(|_| too_many("the conditional vertices"))?);
@@ -161,7 +195,7 @@ impl PackedCdf2D {
 
     /// Conditional j's positions and CDF values.
     #[inline(always)]
-    fn conditional(&self, j: usize) -> (&[u16], &[u16]) {
+    fn conditional(&self, j: usize) -> (&[u8], &[u16]) {
         let (a, b) = (self.offsets[j] as usize, self.offsets[j + 1] as usize);
         (&self.conditional_pos[a..b], &self.conditional_cdf[a..b])
     }
@@ -170,7 +204,7 @@ impl PackedCdf2D {
     /// the conditional of y's segment with u.x; with the density there and
     /// whether it is the same over the box (x, y) ± `margin` (in unit
     /// coordinates).
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, u_x: f32, u_y: f32, n: (f32, f32), margin: (f32, f32)) -> Located {
         let (n_x, n_y) = n;
         let (y, j) = sample_curve(&self.marginal_pos, &self.marginal_cdf, n_y, u_y);
@@ -192,7 +226,7 @@ impl PackedCdf2D {
 
     /// The density at (x, y) in [0, 1)^2 and whether it is the same over
     /// the box (x, y) ± `margin`.
-    #[inline]
+    #[inline(always)]
     pub fn locate(&self, x: f32, y: f32, n: (f32, f32), margin: (f32, f32)) -> Located {
         let (n_x, n_y) = n;
         let ty = y * n_y;
@@ -217,13 +251,13 @@ impl PackedCdf2D {
         }
     }
 
-    /// Bytes kept: two bytes per stored value.
+    /// Bytes kept: two per stored value, one per conditional position.
     pub fn storage_bytes(&self) -> usize {
         2 * (self.marginal_pos.len()
             + self.marginal_cdf.len()
             + self.offsets.len()
-            + self.conditional_pos.len()
             + self.conditional_cdf.len())
+            + self.conditional_pos.len()
     }
 
     /// The number of marginal vertices.
@@ -266,12 +300,17 @@ impl PackedCdf2D {
     }
 }
 
-fn check_curve(what: &str, pos: &[u16], cdf: &[u16], n: usize) -> std::result::Result<(), String> {
+fn check_curve<P: Stored + PartialOrd>(
+    what: &str,
+    pos: &[P],
+    cdf: &[u16],
+    n: usize,
+) -> std::result::Result<(), String> {
     let m = pos.len();
     if m < 2 || cdf.len() != m {
         return Err(format!("{what}: {m} positions and {} CDF values", cdf.len()));
     }
-    if pos[0] != 0 || pos[m - 1] as usize != n || cdf[0] != 0 || cdf[m - 1] != Q {
+    if pos[0].float() != 0.0 || pos[m - 1].float() != n as f32 || cdf[0] != 0 || cdf[m - 1] != Q {
         return Err(format!("{what}: does not run from (0, 0) to ({n}, {Q})"));
     }
     if pos.windows(2).any(|w| w[1] <= w[0]) {
@@ -336,6 +375,19 @@ pub(crate) fn quantise(masses: &[f64]) -> Vec<u16> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn counts_agree_with_a_linear_count() {
+        let values: Vec<u16> = vec![0, 0, 3, 5, 5, 9, 12, 40, 40, 41];
+        for n in 0..=values.len() {
+            let v = &values[..n];
+            for t in 0..45 {
+                let t = t as f32 + 0.25;
+                let expected = v.iter().filter(|&&p| p as f32 <= t).count();
+                assert_eq!(u16::count_at_or_below(v, t), expected, "{n} {t}");
+            }
+        }
+    }
 
     #[test]
     fn quantised_cdfs_keep_every_positive_segment() {

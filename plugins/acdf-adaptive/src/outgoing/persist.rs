@@ -9,9 +9,9 @@
 //! name (`string`), whether it is isotropic (u8, 1), its fingerprint (u64),
 //! the half-vector cells θ_h and φ_h (2 × u32), the cosine mixing fraction
 //! (f32), the breakpoints u_o (`f32 array`), then per breakpoint its slice:
-//! five `u16 array`s (u32 count, then the values), the marginal positions,
-//! the marginal CDF values, the conditional offsets, the conditional
-//! positions and the conditional CDF values.
+//! arrays of a u32 count and the values: the marginal positions (u16), the
+//! marginal CDF values (u16), the conditional offsets (u16), the
+//! conditional positions (u8) and the conditional CDF values (u16).
 
 use super::{OutgoingBuilder, OutgoingSampler, PackedCdf2D};
 use crate::simplify::simplifier_by_name;
@@ -37,6 +37,18 @@ fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
         w.u8(a);
         w.u8(b);
     }
+}
+
+fn write_u8s(w: &mut ByteWriter, values: &[u8]) {
+    w.length(values.len());
+    for &v in values {
+        w.u8(v);
+    }
+}
+
+fn read_u8s(r: &mut ByteReader<'_>, field: &'static str) -> Result<Vec<u8>, PersistError> {
+    let n = r.count(field, 1)?;
+    (0..n).map(|_| r.u8(field)).collect()
 }
 
 fn read_u16s(r: &mut ByteReader<'_>, field: &'static str) -> Result<Vec<u16>, PersistError> {
@@ -73,7 +85,7 @@ impl OutgoingSampler {
             write_u16s(&mut w, &s.marginal_pos);
             write_u16s(&mut w, &s.marginal_cdf);
             write_u16s(&mut w, &s.offsets);
-            write_u16s(&mut w, &s.conditional_pos);
+            write_u8s(&mut w, &s.conditional_pos);
             write_u16s(&mut w, &s.conditional_cdf);
         }
         seal(&w.into_bytes())
@@ -147,7 +159,7 @@ impl OutgoingSampler {
                 marginal_pos: read_u16s(&mut r, "marginal positions")?,
                 marginal_cdf: read_u16s(&mut r, "marginal CDF")?,
                 offsets: read_u16s(&mut r, "offsets")?,
-                conditional_pos: read_u16s(&mut r, "conditional positions")?,
+                conditional_pos: read_u8s(&mut r, "conditional positions")?,
                 conditional_cdf: read_u16s(&mut r, "conditional CDF")?,
             };
             slice

@@ -102,7 +102,7 @@ fn searched(
     options: &SamplerOptions,
     target: f64,
 ) -> Result<AnySampler> {
-    let simplifier = spec.simplifier().ok_or_else(|| Error::InvalidArgument {
+    spec.simplifier().ok_or_else(|| Error::InvalidArgument {
         what: "sampler",
         value: spec.to_string(),
         reason: "--target-efficiency searches the tolerance of an adaptive sampler".into(),
@@ -133,7 +133,7 @@ fn searched(
     let relative_variance = integrands.noise_free(&reference_sampler).relative_variance;
     let result = search_tolerance(
         m,
-        simplifier,
+        spec,
         options,
         &Reference {
             sampler: &reference_sampler,
