@@ -27,7 +27,7 @@ fn sampler(name: &str, brdf: Arc<dyn Brdf>) -> acdf_core::Result<OutgoingSampler
 
 fn config(wo_theta_degrees: Vec<f32>) -> SamplerConfig {
     SamplerConfig {
-        samples: 100_000,
+        samples: 200_000,
         cos_theta_cells: 50,
         phi_cells: 100,
         wo_theta_degrees,

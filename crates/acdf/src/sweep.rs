@@ -40,6 +40,19 @@ pub fn default_tolerance(simplifier: SimplifierName) -> f64 {
     (simplifier.entry().make)().default_tolerance()
 }
 
+/// The default tolerance of a sampler with a simplifier: the simplifier's
+/// for `adaptive:`, scaled by
+/// [`TOLERANCE_SCALE`](acdf_adaptive::outgoing::TOLERANCE_SCALE) for
+/// `outgoing:`; `None` for a sampler without one.
+pub fn spec_default_tolerance(spec: SamplerSpec) -> Option<f64> {
+    let base = default_tolerance(spec.simplifier()?);
+    Some(if spec.family().name == crate::registry::OUTGOING {
+        base * acdf_adaptive::outgoing::TOLERANCE_SCALE
+    } else {
+        base
+    })
+}
+
 /// One measured point: one sampler at one tolerance.
 #[derive(Debug, Clone, Serialize)]
 pub struct SweepPoint {

@@ -26,7 +26,7 @@ use crate::error::Result;
 use crate::material::Material;
 use crate::registry::{make_sampler_tabulated, AnySampler, SamplerOptions, Tabulation};
 use crate::spec::{SamplerSpec, SimplifierName};
-use crate::sweep::default_tolerance;
+use crate::sweep::{default_tolerance, spec_default_tolerance};
 
 /// The factor between the tolerances of the stepping phase.
 pub const STEP: f64 = 4.0;
@@ -173,7 +173,7 @@ pub fn search_tolerance(
 
     // A start beyond the stepping's reach from the default is brought
     // back to it.
-    let default = default_tolerance(simplifier);
+    let default = spec_default_tolerance(spec).unwrap_or_else(|| default_tolerance(simplifier));
     let start = base
         .tolerance
         .filter(|t| t.is_finite() && *t > 0.0)
