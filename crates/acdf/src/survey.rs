@@ -6,7 +6,8 @@
 //! builds the reference, the uniform sampler at the default resolution,
 //! every simplifier of the adaptive plug-in at its default tolerance,
 //! `adaptive:chi2` at the tolerance that keeps a target fraction of the
-//! reference's efficiency ([`search_tolerance`]), and cosine sampling; it
+//! reference's efficiency ([`search_tolerance`]), `outgoing:chi2` at its
+//! default tolerance, and cosine sampling; it
 //! measures each by the noise-free measures of
 //! [`efficiency`](crate::efficiency) (no Monte Carlo draws), times their
 //! own work in turns, and records storage, compression against the
