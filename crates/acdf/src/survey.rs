@@ -141,14 +141,16 @@ fn build(
     let sampler = make_sampler_tabulated(spec, material, options, tables)?;
     // The uniform and adaptive samplers are built from the shared
     // tabulation; the outgoing one tabulates its own.
-    let shared = if spec.family().file_kind.is_some() && spec.family().name != crate::registry::OUTGOING {
-        tables.seconds
-    } else {
-        0.0
-    };
+    let shared =
+        if spec.family().file_kind.is_some() && spec.family().name != crate::registry::OUTGOING {
+            tables.seconds
+        } else {
+            0.0
+        };
     Ok(Entry {
         label,
-        tolerance: crate::sweep::spec_default_tolerance(spec).map(|d| options.tolerance.unwrap_or(d)),
+        tolerance: crate::sweep::spec_default_tolerance(spec)
+            .map(|d| options.tolerance.unwrap_or(d)),
         sampler,
         build_seconds: start.elapsed().as_secs_f64() + shared,
         target: None,

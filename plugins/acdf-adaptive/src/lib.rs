@@ -70,8 +70,8 @@ pub mod sampler;
 pub mod simplify;
 
 pub use dist::{AdaptiveCdf1D, AdaptiveCdf2D};
-pub use outgoing::{OutgoingBuilder, OutgoingSampler};
 pub use env::{adaptive_env_sampler, oriented_env_sampler, AdaptiveEnvSampler, OrientedEnvSampler};
+pub use outgoing::{OutgoingBuilder, OutgoingSampler};
 pub use sampler::{adaptive_sampler, average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 pub use simplify::{
     chi_square_error, perpendicular_error, simplifier_by_name, vertical_error, ChiSquareOptimal,

@@ -14,8 +14,8 @@
 //! kept slice then gets the support pass of [`fill_support`] for every
 //! outgoing direction between its neighbouring breakpoints, is simplified
 //! into an [`AdaptiveCdf2D`] (first θ_h row pinned, as the adaptive
-//! sampler does), and stored as a [`PackedCdf2D`]: 16-bit grid indices
-//! and 16-bit CDF values.
+//! sampler does), and stored as a [`PackedCdf2D`]: 16-bit CDF values,
+//! 16-bit θ_h grid indices and 8-bit φ_h grid indices.
 //!
 //! **Sampling.** For wo with u_o = sqrt(θ_o / (π/2)) between breakpoints
 //! u_k and u_{k+1}, t = (u_o - u_k) / (u_{k+1} - u_k): slice k is drawn
@@ -32,7 +32,7 @@
 //! slice then covers it.
 //!
 //! **Storage** counts every byte kept: the breakpoints (f32) and each
-//! slice's 16-bit arrays.
+//! slice's arrays.
 
 mod packed;
 pub mod persist;
@@ -216,7 +216,11 @@ impl OutgoingSampler {
     /// [`FINE_PER_CELL`] × `resolution.theta_o` fine θ_o slices unless the
     /// builder says otherwise. Errors: an anisotropic or zero material, an
     /// invalid resolution or a table beyond the memory limit.
-    pub fn new(brdf: Arc<dyn Brdf>, resolution: Resolution, builder: OutgoingBuilder) -> Result<Self> {
+    pub fn new(
+        brdf: Arc<dyn Brdf>,
+        resolution: Resolution,
+        builder: OutgoingBuilder,
+    ) -> Result<Self> {
         resolution.validate()?;
         builder.validate()?;
         if brdf.is_zero_everywhere() {
@@ -261,7 +265,13 @@ impl OutgoingSampler {
                 let lo = u[kept[i.saturating_sub(1)]];
                 let hi = u[kept[(i + 1).min(kept.len() - 1)]];
                 let mut values = tables[k].clone();
-                fill_support(&*brdf, &served_between(lo, hi), n_theta_h, n_phi_h, &mut values);
+                fill_support(
+                    &*brdf,
+                    &served_between(lo, hi),
+                    n_theta_h,
+                    n_phi_h,
+                    &mut values,
+                );
                 let d = AdaptiveCdf2D::from_values_pinned(
                     &values,
                     n_phi_h,
@@ -274,7 +284,14 @@ impl OutgoingSampler {
             })
             .collect::<Result<Vec<_>>>()?;
         let breakpoints = kept.iter().map(|&k| u[k]).collect();
-        Ok(Self::from_parts(brdf, builder, n_theta_h, n_phi_h, breakpoints, slices))
+        Ok(Self::from_parts(
+            brdf,
+            builder,
+            n_theta_h,
+            n_phi_h,
+            breakpoints,
+            slices,
+        ))
     }
 
     /// A sampler of stored parts (checked by the caller).
@@ -329,7 +346,10 @@ impl OutgoingSampler {
 
     /// The kept θ_o breakpoints, as θ_o in radians.
     pub fn breakpoint_angles(&self) -> Vec<f32> {
-        self.breakpoints.iter().map(|&u| FRAC_PI_2 * u * u).collect()
+        self.breakpoints
+            .iter()
+            .map(|&u| FRAC_PI_2 * u * u)
+            .collect()
     }
 
     /// The kept slices, in the order of the breakpoints.
@@ -346,7 +366,11 @@ impl OutgoingSampler {
     /// over the kept slices.
     pub fn mean_vertices(&self) -> (f64, f64) {
         let n = self.slices.len().max(1) as f64;
-        let marginal = self.slices.iter().map(|s| s.marginal_vertex_count()).sum::<usize>();
+        let marginal = self
+            .slices
+            .iter()
+            .map(|s| s.marginal_vertex_count())
+            .sum::<usize>();
         let (vertices, stored) = self
             .slices
             .iter()
@@ -571,7 +595,7 @@ impl BxdfSampler for OutgoingSampler {
         self.pdf_one(wo, wi)
     }
 
-    /// The breakpoints (4 bytes each) and every slice's 16-bit arrays.
+    /// The breakpoints (4 bytes each) and every slice's stored arrays.
     fn storage_bytes(&self) -> usize {
         4 * self.breakpoints.len()
             + self

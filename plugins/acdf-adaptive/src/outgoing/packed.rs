@@ -1,6 +1,6 @@
 //! A slice of the outgoing sampler in its stored form: an
-//! [`AdaptiveCdf2D`]'s kept vertices as 16-bit grid indices and 16-bit CDF
-//! values, sampled and evaluated in that form.
+//! [`AdaptiveCdf2D`]'s kept vertices as grid indices (16 bits along θ_h, 8
+//! along φ_h) and 16-bit CDF values, sampled and evaluated in that form.
 
 use crate::AdaptiveCdf2D;
 use acdf_core::{Error, Result};
@@ -126,14 +126,25 @@ impl PackedCdf2D {
     /// The stored form of `d`, built from `values` (row-major, `n_y` rows of
     /// `n_x`): the vertices `d` kept, with CDF values recomputed from the
     /// table in f64 and quantised. Errors when `d`'s vertices are off the
-    /// grid or too many for 16-bit indices.
-    pub fn from_adaptive(d: &AdaptiveCdf2D, values: &[f32], n_x: usize, n_y: usize) -> Result<Self> {
+    /// grid, too many for 16-bit offsets, or more than 255 φ_h or 65535
+    /// θ_h cells.
+    pub fn from_adaptive(
+        d: &AdaptiveCdf2D,
+        values: &[f32],
+        n_x: usize,
+        n_y: usize,
+    ) -> Result<Self> {
         let too_many = |what: &str| Error::InvalidParameter {
             name: "outgoing slice",
-            reason: format!("{what} do not fit 16-bit indices"),
+            reason: format!("{what} do not fit the stored indices"),
         };
         if n_x > u8::MAX as usize || n_y > Q as usize {
-            return Err(too_many("more than 255 phi_h or 65535 theta_h cells"));
+            return Err(Error::InvalidParameter {
+                name: "resolution",
+                reason: format!(
+                    "{n_y} theta_h x {n_x} phi_h cells: the outgoing sampler stores at most 65535 theta_h and 255 phi_h cells"
+                ),
+            });
         }
         let rows: Vec<f64> = values
             .chunks_exact(n_x)
@@ -212,7 +223,8 @@ impl PackedCdf2D {
         let (x, k) = sample_curve(pos, cdf, n_x, u_x);
         Located {
             p: (x, y),
-            pdf: density(&self.marginal_pos, &self.marginal_cdf, n_y, j) * density(pos, cdf, n_x, k),
+            pdf: density(&self.marginal_pos, &self.marginal_cdf, n_y, j)
+                * density(pos, cdf, n_x, k),
             same_around: inside(&self.marginal_pos, j, y * n_y, margin.1 * n_y)
                 & inside(pos, k, x * n_x, margin.0 * n_x),
         }
@@ -278,14 +290,20 @@ impl PackedCdf2D {
         check_curve("marginal", &self.marginal_pos, &self.marginal_cdf, n_y)?;
         let m = self.marginal_pos.len();
         if self.offsets.len() != m || self.offsets[0] != 0 {
-            return Err(format!("{} offsets for {m} marginal vertices", self.offsets.len()));
+            return Err(format!(
+                "{} offsets for {m} marginal vertices",
+                self.offsets.len()
+            ));
         }
         if self.offsets.windows(2).any(|w| w[1] < w[0]) {
             return Err("offsets decrease".into());
         }
         let end = self.offsets[m - 1] as usize;
         if end != self.conditional_pos.len() || end != self.conditional_cdf.len() {
-            return Err(format!("offsets end at {end}, the conditionals hold {}", self.conditional_pos.len()));
+            return Err(format!(
+                "offsets end at {end}, the conditionals hold {}",
+                self.conditional_pos.len()
+            ));
         }
         for j in 0..m - 1 {
             let (pos, cdf) = self.conditional(j);
@@ -308,7 +326,10 @@ fn check_curve<P: Stored + PartialOrd>(
 ) -> std::result::Result<(), String> {
     let m = pos.len();
     if m < 2 || cdf.len() != m {
-        return Err(format!("{what}: {m} positions and {} CDF values", cdf.len()));
+        return Err(format!(
+            "{what}: {m} positions and {} CDF values",
+            cdf.len()
+        ));
     }
     if pos[0].float() != 0.0 || pos[m - 1].float() != n as f32 || cdf[0] != 0 || cdf[m - 1] != Q {
         return Err(format!("{what}: does not run from (0, 0) to ({n}, {Q})"));

@@ -129,12 +129,18 @@ impl OutgoingSampler {
         if builder.name() != name {
             return Err(invalid(
                 "sampler name",
-                format!("`{name}` does not match its parameters (`{}`)", builder.name()),
+                format!(
+                    "`{name}` does not match its parameters (`{}`)",
+                    builder.name()
+                ),
             ));
         }
         let material = r.string("material")?;
         if r.u8("isotropic")? != 1 {
-            return Err(invalid("isotropic", "an outgoing sampler is isotropic".into()));
+            return Err(invalid(
+                "isotropic",
+                "an outgoing sampler is isotropic".into(),
+            ));
         }
         let fingerprint = r.u64("fingerprint")?;
         let n_theta_h = r.u32("theta_h cells")? as usize;
@@ -148,10 +154,7 @@ impl OutgoingSampler {
             || breakpoints[n - 1] != 1.0
             || breakpoints.windows(2).any(|w| !(w[1] > w[0]))
         {
-            return Err(invalid(
-                "breakpoints",
-                "not increasing from 0 to 1".into(),
-            ));
+            return Err(invalid("breakpoints", "not increasing from 0 to 1".into()));
         }
         let mut slices = Vec::with_capacity(n.min(r.remaining()));
         for _ in 0..n {

@@ -10,7 +10,11 @@ fn small(brdf: Arc<dyn Brdf>) -> OutgoingSampler {
 }
 
 fn direction(theta: f32, phi: f32) -> Vec3 {
-    Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    Vec3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    )
 }
 
 /// The density is continuous in wo across a breakpoint: just below, at
@@ -40,7 +44,10 @@ fn pdf_is_continuous_across_a_breakpoint() {
     }
     assert!(compared > 20);
     // The neighbouring slices differ: the continuity is the blend's.
-    let (a, b) = (&s.slices()[angles.len() / 2 - 1], &s.slices()[angles.len() / 2]);
+    let (a, b) = (
+        &s.slices()[angles.len() / 2 - 1],
+        &s.slices()[angles.len() / 2],
+    );
     assert_ne!(a, b);
 }
 
@@ -59,7 +66,10 @@ fn nearest_slice_mutant_jumps() {
     let mut jumps = 0;
     for i in 0..64 {
         let (x, y) = ((i % 8) as f32 / 8.0 + 0.01, (i / 8) as f32 / 8.0 + 0.01);
-        let (lo, hi) = (s.slices[k].pdf(x, y, nx, ny), s.slices[k + 1].pdf(x, y, nx, ny));
+        let (lo, hi) = (
+            s.slices[k].pdf(x, y, nx, ny),
+            s.slices[k + 1].pdf(x, y, nx, ny),
+        );
         if (lo - hi).abs() > 0.02 * lo.max(hi) {
             jumps += 1;
         }
