@@ -34,6 +34,10 @@
 //! **Storage** counts every byte kept: the breakpoints (f32) and each
 //! slice's arrays.
 
+// `!(x > 0.0)` is how this module says "not positive, or NaN": the negated
+// comparison is the point, since NaN must take the rejecting branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 mod packed;
 pub mod persist;
 
