@@ -843,7 +843,7 @@ mod tests {
         let options = SamplerOptions::default();
         for name in sampler_names()
             .into_iter()
-            .filter(|n| n != "rgl" && n != ADAPTIVE)
+            .filter(|n| n != "rgl" && n != ADAPTIVE && n != OUTGOING)
         {
             let s = make_sampler(&name, &m, &options).unwrap();
             assert_eq!(s.name(), name);
@@ -854,6 +854,10 @@ mod tests {
         assert_eq!(
             make_sampler("adaptive", &m, &options).unwrap().name(),
             "adaptive:dp"
+        );
+        assert_eq!(
+            make_sampler("outgoing", &m, &options).unwrap().name(),
+            "outgoing:dp"
         );
         assert!(matches!(
             make_sampler("rgl", &m, &options),
