@@ -91,14 +91,22 @@ pub struct OutgoingBuilder {
     pub budget: f64,
     /// Fine θ_o slices tabulated to choose the breakpoints from (at least 2).
     pub fine: usize,
+    /// A storage cap: when the sampler would store more, the tolerance and
+    /// the budget are raised together by [`CAP_STEP`] until it fits (at
+    /// most 7 times). [`by_name`](Self::by_name) sets
+    /// [`DEFAULT_MAX_BYTES`] at the default tolerance and none at a given
+    /// one. A built sampler records the tolerance and budget it used.
+    pub max_bytes: Option<usize>,
 }
 
 impl OutgoingBuilder {
-    /// The simplifier called `name` at `tolerance` (its default when
-    /// `None`), with the default budget and `fine` fine slices.
+    /// The simplifier called `name` at `tolerance` (when `None`, its default
+    /// times [`TOLERANCE_SCALE`] with the storage cap [`DEFAULT_MAX_BYTES`]),
+    /// the budget in proportion, and `fine` fine slices.
     pub fn by_name(name: &str, tolerance: Option<f64>, fine: usize) -> Result<Self> {
         let simplifier = simplifier_by_name(name)?;
         let default = simplifier.default_tolerance() * TOLERANCE_SCALE;
+        let at_default = tolerance.is_none();
         let tolerance = tolerance.unwrap_or(default);
         // The budget follows the tolerance, so that one knob (the
         // tolerance, as `--tolerance` and `--target-efficiency` set it)
@@ -110,6 +118,7 @@ impl OutgoingBuilder {
         };
         let b = OutgoingBuilder {
             simplifier,
+            max_bytes: at_default.then_some(DEFAULT_MAX_BYTES),
             tolerance,
             budget,
             fine,
@@ -155,6 +164,21 @@ pub struct OutgoingSampler {
     slices: Vec<PackedCdf2D>,
     cosine_fraction: f32,
 }
+
+/// The bytes of `breakpoints` breakpoints (f32) and their slices.
+fn stored_bytes(breakpoints: usize, slices: &[PackedCdf2D]) -> usize {
+    4 * breakpoints + slices.iter().map(PackedCdf2D::storage_bytes).sum::<usize>()
+}
+
+/// The storage the default tolerance keeps within: 1000 times less than
+/// the seed's uniform table at 32x16x256x32 (17,627,136 bytes).
+pub const DEFAULT_MAX_BYTES: usize = 17_627;
+
+/// The factor by which a capped build raises its tolerance and budget.
+pub const CAP_STEP: f64 = 1.5;
+
+/// Builds a capped sampler tries at most.
+const CAP_TRIES: usize = 8;
 
 /// θ_o of the fine node u (the grazing end at cos θ_o = [`GRAZING_COS`]).
 fn outgoing_at(u: f32) -> Vec3 {
@@ -260,33 +284,47 @@ impl OutgoingSampler {
                 t.iter().map(|&v| v * scale).collect()
             })
             .collect();
-        let kept = choose_breakpoints(&normalised, &u, builder.budget);
-        drop(normalised);
-        let slices = kept
-            .par_iter()
-            .enumerate()
-            .map(|(i, &k)| {
-                let lo = u[kept[i.saturating_sub(1)]];
-                let hi = u[kept[(i + 1).min(kept.len() - 1)]];
-                let mut values = tables[k].clone();
-                fill_support(
-                    &*brdf,
-                    &served_between(lo, hi),
-                    n_theta_h,
-                    n_phi_h,
-                    &mut values,
-                );
-                let d = AdaptiveCdf2D::from_values_pinned(
-                    &values,
-                    n_phi_h,
-                    n_theta_h,
-                    &*builder.simplifier,
-                    builder.tolerance,
-                    1,
-                )?;
-                PackedCdf2D::from_adaptive(&d, &values, n_phi_h, n_theta_h)
-            })
-            .collect::<Result<Vec<_>>>()?;
+        // With a storage cap, the tolerance and the budget grow together
+        // by CAP_STEP until the sampler fits (or CAP_TRIES are spent).
+        let mut builder = builder;
+        let mut tries = 0;
+        let (kept, slices) = loop {
+            let kept = choose_breakpoints(&normalised, &u, builder.budget);
+            let slices = kept
+                .par_iter()
+                .enumerate()
+                .map(|(i, &k)| {
+                    let lo = u[kept[i.saturating_sub(1)]];
+                    let hi = u[kept[(i + 1).min(kept.len() - 1)]];
+                    let mut values = tables[k].clone();
+                    fill_support(
+                        &*brdf,
+                        &served_between(lo, hi),
+                        n_theta_h,
+                        n_phi_h,
+                        &mut values,
+                    );
+                    let d = AdaptiveCdf2D::from_values_pinned(
+                        &values,
+                        n_phi_h,
+                        n_theta_h,
+                        &*builder.simplifier,
+                        builder.tolerance,
+                        1,
+                    )?;
+                    PackedCdf2D::from_adaptive(&d, &values, n_phi_h, n_theta_h)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let bytes = stored_bytes(kept.len(), &slices);
+            tries += 1;
+            match builder.max_bytes {
+                Some(cap) if bytes > cap && tries < CAP_TRIES => {
+                    builder.tolerance *= CAP_STEP;
+                    builder.budget *= CAP_STEP;
+                }
+                _ => break (kept, slices),
+            }
+        };
         let breakpoints = kept.iter().map(|&k| u[k]).collect();
         Ok(Self::from_parts(
             brdf,
@@ -601,12 +639,7 @@ impl BxdfSampler for OutgoingSampler {
 
     /// The breakpoints (4 bytes each) and every slice's stored arrays.
     fn storage_bytes(&self) -> usize {
-        4 * self.breakpoints.len()
-            + self
-                .slices
-                .iter()
-                .map(PackedCdf2D::storage_bytes)
-                .sum::<usize>()
+        stored_bytes(self.breakpoints.len(), &self.slices)
     }
 }
 

@@ -121,6 +121,7 @@ impl OutgoingSampler {
         let fine = r.u32("fine slices")? as usize;
         let builder = OutgoingBuilder {
             simplifier,
+            max_bytes: None,
             tolerance,
             budget,
             fine,

@@ -117,3 +117,22 @@ fn anisotropic_materials_are_refused() {
     let r = OutgoingSampler::new(Arc::new(Aniso(nickel())), Resolution::ISOTROPIC, builder);
     assert!(matches!(r, Err(Error::InvalidParameter { .. })));
 }
+
+/// A storage cap raises the tolerance and the budget until the sampler
+/// fits: the capped sampler stores at most the cap and records the larger
+/// tolerance; without a cap the same builder stores more.
+#[test]
+fn storage_cap_is_kept() {
+    let mut builder = OutgoingBuilder::by_name("chi2", Some(1e-3), 32).unwrap();
+    assert_eq!(builder.max_bytes, None);
+    let res: Resolution = "8x1x64x16".parse().unwrap();
+    let free = OutgoingSampler::new(nickel(), res, builder.clone()).unwrap();
+    let cap = free.storage_bytes() / 2;
+    builder.max_bytes = Some(cap);
+    let capped = OutgoingSampler::new(nickel(), res, builder).unwrap();
+    assert!(capped.storage_bytes() <= cap, "{} > {cap}", capped.storage_bytes());
+    assert!(capped.builder().tolerance > 1e-3);
+    // The default tolerance comes with the default cap.
+    let default = OutgoingBuilder::by_name("chi2", None, 32).unwrap();
+    assert_eq!(default.max_bytes, Some(DEFAULT_MAX_BYTES));
+}
