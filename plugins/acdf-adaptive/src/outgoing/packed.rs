@@ -26,7 +26,7 @@ pub struct Located {
 /// `pos[k] / n`), CDF values are multiples of 1/65535.
 ///
 /// Every segment whose table cells hold mass keeps at least 1/65535 of it
-/// ([`quantise`]), so the density is positive wherever the tabulated table
+/// (see `from_adaptive`), so the density is positive wherever the tabulated table
 /// is. A marginal segment without mass has no conditional (empty).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PackedCdf2D {

@@ -130,7 +130,11 @@ fn storage_cap_is_kept() {
     let cap = free.storage_bytes() / 2;
     builder.max_bytes = Some(cap);
     let capped = OutgoingSampler::new(nickel(), res, builder).unwrap();
-    assert!(capped.storage_bytes() <= cap, "{} > {cap}", capped.storage_bytes());
+    assert!(
+        capped.storage_bytes() <= cap,
+        "{} > {cap}",
+        capped.storage_bytes()
+    );
     assert!(capped.builder().tolerance > 1e-3);
     // The default tolerance comes with the default cap.
     let default = OutgoingBuilder::by_name("chi2", None, 32).unwrap();
