@@ -361,13 +361,7 @@ impl OutgoingSampler {
     /// Mix in the cosine lobe with probability `fraction` in [0, 1]:
     /// p = (1 - a) p_table + a cos θ_i / π.
     pub fn with_cosine_mix(mut self, fraction: f32) -> Result<Self> {
-        if !(0.0..=1.0).contains(&fraction) {
-            return Err(Error::InvalidParameter {
-                name: "cosine fraction",
-                reason: format!("{fraction} is not in [0, 1]"),
-            });
-        }
-        self.cosine_fraction = fraction;
+        self.cosine_fraction = acdf_tabulated::check_cosine_fraction(fraction)?;
         Ok(self)
     }
 
