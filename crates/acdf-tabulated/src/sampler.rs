@@ -230,13 +230,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// p = (1 - a) p_table + a cos θ_i / π. Errors for a fraction outside
     /// [0, 1] or NaN.
     pub fn with_cosine_mix(mut self, fraction: f32) -> Result<Self> {
-        if !(0.0..=1.0).contains(&fraction) {
-            return Err(Error::InvalidParameter {
-                name: "cosine fraction",
-                reason: format!("{fraction} is not in [0, 1]"),
-            });
-        }
-        self.cosine_fraction = fraction;
+        self.cosine_fraction = check_cosine_fraction(fraction)?;
         Ok(self)
     }
 
@@ -598,6 +592,20 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         wi_z: f32,
     ) -> f32 {
         self.pdf_one(Vec3::new(wo_x, wo_y, wo_z), Vec3::new(wi_x, wi_y, wi_z))
+    }
+}
+
+/// `fraction` if it is a probability of drawing from the cosine lobe (in
+/// [0, 1]); an error naming it otherwise (NaN included). Shared by every
+/// sampler that mixes in the cosine lobe.
+pub fn check_cosine_fraction(fraction: f32) -> Result<f32> {
+    if (0.0..=1.0).contains(&fraction) {
+        Ok(fraction)
+    } else {
+        Err(Error::InvalidParameter {
+            name: "cosine fraction",
+            reason: format!("{fraction} is not in [0, 1]"),
+        })
     }
 }
 

@@ -21,7 +21,10 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
+use acdf_adaptive::outgoing::FINE_PER_CELL;
+use acdf_adaptive::{
+    average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder, OutgoingBuilder, OutgoingSampler,
+};
 use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
 use acdf_rgl::RglSampler;
@@ -155,6 +158,29 @@ impl SamplerOps for AdaptiveBrdfSampler {
     }
 }
 
+impl SamplerOps for OutgoingSampler {
+    fn resolution_label(&self) -> String {
+        let (m, c) = OutgoingSampler::mean_vertices(self);
+        format!(
+            "{}/{}x1x{m:.1}x{c:.1}",
+            self.breakpoint_angles().len(),
+            self.builder().fine
+        )
+    }
+    fn material_name(&self) -> Option<&str> {
+        Some(self.brdf().name())
+    }
+    fn material_fingerprint(&self) -> Option<u64> {
+        Some(self.brdf().fingerprint())
+    }
+    fn mean_vertices(&self) -> Option<(f64, f64)> {
+        Some(OutgoingSampler::mean_vertices(self))
+    }
+    fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
+        Some(self.save(path))
+    }
+}
+
 // Every variant takes a doc comment (`+`, not `*`): without an attribute
 // the variant's tokens reach `enum_dispatch` with the spans of this macro,
 // and the binding it generates for the variant's value no longer resolves.
@@ -206,6 +232,8 @@ any_sampler! {
     Adaptive(AdaptiveBrdfSampler),
     /// `rgl`: the RGL `.bsdf` file's own sampler.
     Rgl(RglSampler),
+    /// `outgoing:SIMPLIFIER`: θ_o breakpoints per material, blended slices.
+    Outgoing(OutgoingSampler),
 }
 
 impl std::fmt::Debug for AnySampler {
@@ -260,6 +288,10 @@ pub struct Requirement {
 /// The name of the family with simplifiers.
 pub const ADAPTIVE: &str = "adaptive";
 
+/// The name of the outgoing family ([`OutgoingSampler`]), which takes the
+/// same simplifiers.
+pub const OUTGOING: &str = "outgoing";
+
 /// Every sampler family, in the order of help texts and of `acdf render`'s
 /// default set.
 pub static SAMPLERS: &[SamplerFamily] = &[
@@ -306,6 +338,30 @@ pub static SAMPLERS: &[SamplerFamily] = &[
             Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())
         },
         load: Some(|bytes| Ok(AdaptiveBrdfSampler::from_bytes(bytes)?.into())),
+    },
+    SamplerFamily {
+        name: OUTGOING,
+        description: "adaptive outgoing angles: slices at θ_o breakpoints chosen per material, \
+                      blended, 16-bit; isotropic materials only, outgoing:SIMPLIFIER",
+        simplifiers: true,
+        report_rank: None,
+        in_render: false,
+        requires: Some(Requirement {
+            met: |m| m.brdf.is_isotropic(),
+            reason: "the outgoing sampler serves isotropic materials",
+            serves: "isotropic materials",
+        }),
+        file_kind: Some(acdf_adaptive::outgoing::persist::KIND),
+        build: |spec, m, o| {
+            let simplifier = spec
+                .simplifier()
+                .unwrap_or_else(SimplifierName::default_simplifier);
+            let fine = o.resolution.theta_o.saturating_mul(FINE_PER_CELL);
+            let builder = OutgoingBuilder::by_name(simplifier.short(), o.tolerance, fine)?;
+            let sampler = OutgoingSampler::new(m.brdf.clone(), o.resolution, builder)?;
+            Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())
+        },
+        load: Some(|bytes| Ok(OutgoingSampler::from_bytes(bytes)?.into())),
     },
     SamplerFamily {
         name: "rgl",
@@ -787,7 +843,7 @@ mod tests {
         let options = SamplerOptions::default();
         for name in sampler_names()
             .into_iter()
-            .filter(|n| n != "rgl" && n != ADAPTIVE)
+            .filter(|n| n != "rgl" && n != ADAPTIVE && n != OUTGOING)
         {
             let s = make_sampler(&name, &m, &options).unwrap();
             assert_eq!(s.name(), name);
@@ -798,6 +854,10 @@ mod tests {
         assert_eq!(
             make_sampler("adaptive", &m, &options).unwrap().name(),
             "adaptive:dp"
+        );
+        assert_eq!(
+            make_sampler("outgoing", &m, &options).unwrap().name(),
+            "outgoing:dp"
         );
         assert!(matches!(
             make_sampler("rgl", &m, &options),

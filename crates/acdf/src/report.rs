@@ -217,16 +217,16 @@ pub fn report_material(
         let relative_variance = integrands.noise_free(reference).relative_variance;
         let mut found = Vec::new();
         for (k, e) in entries.iter().enumerate() {
-            let Some(simplifier) = e.spec.simplifier() else {
+            if e.spec.simplifier().is_none() {
                 continue;
-            };
+            }
             if k == reference_at {
                 continue;
             }
             let label = e.spec.to_string();
             let (outcome, sampler) = search_tolerance(
                 material,
-                simplifier,
+                e.spec,
                 &e.options,
                 &Reference {
                     sampler: reference,

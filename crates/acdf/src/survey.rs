@@ -6,7 +6,8 @@
 //! builds the reference, the uniform sampler at the default resolution,
 //! every simplifier of the adaptive plug-in at its default tolerance,
 //! `adaptive:chi2` at the tolerance that keeps a target fraction of the
-//! reference's efficiency ([`search_tolerance`]), and cosine sampling; it
+//! reference's efficiency ([`search_tolerance`]), `outgoing:chi2` at its
+//! default tolerance, and cosine sampling; it
 //! measures each by the noise-free measures of
 //! [`efficiency`](crate::efficiency) (no Monte Carlo draws), times their
 //! own work in turns, and records storage, compression against the
@@ -96,11 +97,19 @@ fn target_simplifier() -> SimplifierName {
     SimplifierName::find("chi2").unwrap_or_else(SimplifierName::default_simplifier)
 }
 
+/// `outgoing:chi2`, the outgoing sampler at its default tolerance.
+fn outgoing_spec() -> SamplerSpec {
+    format!("{}:{}", crate::registry::OUTGOING, target_simplifier())
+        .parse()
+        .expect("the outgoing family takes the chi2 simplifier")
+}
+
 /// The sampler labels of a material's rows, in order.
 pub fn survey_labels(reference: &SamplerAt) -> Vec<String> {
     let mut labels = vec![reference_label(reference), SamplerSpec::UNIFORM.to_string()];
     labels.extend(SimplifierName::all().map(|s| SamplerSpec::adaptive(s).to_string()));
     labels.push(TARGET_LABEL.to_string());
+    labels.push(outgoing_spec().to_string());
     labels.push(SamplerSpec::COSINE.to_string());
     labels
 }
@@ -130,18 +139,18 @@ fn build(
 ) -> Result<Entry> {
     let start = Instant::now();
     let sampler = make_sampler_tabulated(spec, material, options, tables)?;
-    let shared = if spec.family().file_kind.is_some() {
-        tables.seconds
-    } else {
-        0.0
-    };
+    // The uniform and adaptive samplers are built from the shared
+    // tabulation; the outgoing one tabulates its own.
+    let shared =
+        if spec.family().file_kind.is_some() && spec.family().name != crate::registry::OUTGOING {
+            tables.seconds
+        } else {
+            0.0
+        };
     Ok(Entry {
         label,
-        tolerance: spec.simplifier().map(|s| {
-            options
-                .tolerance
-                .unwrap_or_else(|| crate::sweep::default_tolerance(s))
-        }),
+        tolerance: crate::sweep::spec_default_tolerance(spec)
+            .map(|d| options.tolerance.unwrap_or(d)),
         sampler,
         build_seconds: start.elapsed().as_secs_f64() + shared,
         target: None,
@@ -204,7 +213,7 @@ pub fn survey_material(
     let reference_rv = integrands.noise_free(&entries[0].sampler).relative_variance;
     let (outcome, sampler) = search_tolerance(
         material,
-        target_simplifier(),
+        SamplerSpec::adaptive(target_simplifier()),
         &SamplerOptions {
             tolerance: start_tolerance,
             ..config.options
@@ -227,6 +236,15 @@ pub fn survey_material(
         target_reached: Some(outcome.reached),
         target: Some(outcome),
     });
+    let outgoing = outgoing_spec();
+    progress(&outgoing.to_string());
+    entries.push(build(
+        outgoing.to_string(),
+        outgoing,
+        material,
+        &config.options,
+        &tables,
+    )?);
     progress("cosine");
     entries.push(build(
         SamplerSpec::COSINE.to_string(),

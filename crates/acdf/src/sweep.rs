@@ -1,5 +1,7 @@
 //! The storage/accuracy trade of the adaptive sampler: every simplifier over
-//! a range of tolerances, with every other sampler the registry knows
+//! a range of tolerances (and, for isotropic materials, the outgoing
+//! sampler with the same simplifiers, its tolerances scaled as its default
+//! is), with every other sampler the registry knows
 //! (uniform, cosine, and `rgl` for RGL materials) as reference points, each
 //! with its storage, time and the noise-free relative variance, firefly
 //! measure and efficiency of [`efficiency`](crate::efficiency), relative to
@@ -38,6 +40,26 @@ pub const TOLERANCE_FACTORS: [f64; 8] = [
 /// The default tolerance of a simplifier, as its plug-in defines it.
 pub fn default_tolerance(simplifier: SimplifierName) -> f64 {
     (simplifier.entry().make)().default_tolerance()
+}
+
+/// The default tolerance of a sampler with a simplifier: the simplifier's
+/// for `adaptive:`, scaled by
+/// [`TOLERANCE_SCALE`](acdf_adaptive::outgoing::TOLERANCE_SCALE) for
+/// `outgoing:`; `None` for a sampler without one.
+pub fn spec_default_tolerance(spec: SamplerSpec) -> Option<f64> {
+    let base = default_tolerance(spec.simplifier()?);
+    Some(if spec.family().name == crate::registry::OUTGOING {
+        base * acdf_adaptive::outgoing::TOLERANCE_SCALE
+    } else {
+        base
+    })
+}
+
+/// `outgoing:SIMPLIFIER`.
+fn outgoing(simplifier: SimplifierName) -> SamplerSpec {
+    format!("{}:{simplifier}", crate::registry::OUTGOING)
+        .parse()
+        .expect("the outgoing family takes every simplifier")
 }
 
 /// One measured point: one sampler at one tolerance.
@@ -182,6 +204,22 @@ pub fn run_sweep(
             )?);
         }
     }
+    // The outgoing sampler's front, for isotropic materials: each swept
+    // simplifier at its tolerances scaled as the outgoing default is.
+    if material.brdf.is_isotropic() {
+        for &simplifier in plan.simplifiers {
+            let spec = outgoing(simplifier);
+            for tolerance in (plan.tolerances)(simplifier)? {
+                let tolerance = tolerance * acdf_adaptive::outgoing::TOLERANCE_SCALE;
+                progress(&format!("{spec} tolerance {tolerance:.3e}"));
+                let options = SamplerOptions {
+                    tolerance: Some(tolerance),
+                    ..*base
+                };
+                built.push(build(spec, material, &options, &tables)?);
+            }
+        }
+    }
     progress("quadrature");
     let integrands = Integrands::new(material.brdf.as_ref(), env, config);
     let mut outcomes = Vec::new();
@@ -192,7 +230,7 @@ pub fn run_sweep(
         for &simplifier in plan.simplifiers {
             let (outcome, sampler) = search_tolerance(
                 material,
-                simplifier,
+                SamplerSpec::adaptive(simplifier),
                 base,
                 &Reference {
                     sampler: reference,

@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::material::Material;
 use crate::registry::{make_sampler_tabulated, AnySampler, SamplerOptions, Tabulation};
 use crate::spec::{SamplerAt, SamplerSpec, SimplifierName};
-use crate::sweep::default_tolerance;
+use crate::sweep::{default_tolerance, spec_default_tolerance};
 
 /// The factor between the tolerances of the stepping phase.
 pub const STEP: f64 = 4.0;
@@ -183,10 +183,10 @@ pub fn build_for_target(
     mut progress: impl FnMut(SearchStep),
 ) -> Result<(TargetOutcome, AnySampler)> {
     let target = check_target(target)?;
-    let simplifier = spec.simplifier().ok_or_else(|| Error::InvalidArgument {
+    spec.simplifier().ok_or_else(|| Error::InvalidArgument {
         what: "sampler",
         value: spec.to_string(),
-        reason: "a target efficiency searches the tolerance of an adaptive sampler".into(),
+        reason: "a target efficiency searches the tolerance of an adaptive sampler (adaptive:S or outgoing:S)".into(),
     })?;
     let reference_options = SamplerOptions {
         resolution: reference.resolution.unwrap_or(options.resolution),
@@ -209,7 +209,7 @@ pub fn build_for_target(
     let relative_variance = integrands.noise_free(&reference_sampler).relative_variance;
     search_tolerance(
         material,
-        simplifier,
+        spec,
         options,
         &Reference {
             sampler: &reference_sampler,
@@ -230,7 +230,9 @@ pub struct Reference<'a> {
     pub relative_variance: f64,
 }
 
-/// Search the tolerance of `simplifier` (at `base`'s resolution and cosine
+/// Search the tolerance of the sampler `spec` (`adaptive:SIMPLIFIER` or
+/// `outgoing:SIMPLIFIER`; a family without simplifiers is searched as its
+/// first) (at `base`'s resolution and cosine
 /// mixing) for the smallest sampler of `material` whose efficiency is at
 /// least `target` times `reference`'s, on `integrands`, building the
 /// candidates from `tables` (see the module documentation). Returns the outcome and the chosen sampler, built.
@@ -238,7 +240,7 @@ pub struct Reference<'a> {
 #[allow(clippy::too_many_arguments)]
 pub fn search_tolerance(
     material: &Material,
-    simplifier: SimplifierName,
+    spec: SamplerSpec,
     base: &SamplerOptions,
     reference: &Reference,
     integrands: &Integrands,
@@ -247,7 +249,9 @@ pub fn search_tolerance(
     target: f64,
     mut progress: impl FnMut(f64),
 ) -> Result<(TargetOutcome, AnySampler)> {
-    let spec = SamplerSpec::adaptive(simplifier);
+    let simplifier = spec
+        .simplifier()
+        .unwrap_or_else(SimplifierName::default_simplifier);
     // Only the samplers' own work is compared.
     let config = &EfficiencyConfig {
         time_eval: false,
@@ -291,7 +295,7 @@ pub fn search_tolerance(
 
     // A start beyond the stepping's reach from the default is brought
     // back to it.
-    let default = default_tolerance(simplifier);
+    let default = spec_default_tolerance(spec).unwrap_or_else(|| default_tolerance(simplifier));
     let start = base
         .tolerance
         .filter(|t| t.is_finite() && *t > 0.0)

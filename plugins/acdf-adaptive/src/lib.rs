@@ -19,7 +19,10 @@
 //!   [`average_resolution`] reports the mean kept vertices as in the paper;
 //! - [`env`](mod@env): the same distributions over the texels of an environment map
 //!   ([`AdaptiveEnvSampler`]) and per cell of shading normals
-//!   ([`OrientedEnvSampler`]).
+//!   ([`OrientedEnvSampler`]);
+//! - [`outgoing`]: [`OutgoingSampler`], slices kept only at the θ_o
+//!   breakpoints a material needs, blended linearly between them, stored
+//!   in 16 bits.
 //!
 //! # Tolerances and how the defaults were chosen
 //!
@@ -61,12 +64,14 @@
 mod curve;
 pub mod dist;
 pub mod env;
+pub mod outgoing;
 pub mod persist;
 pub mod sampler;
 pub mod simplify;
 
 pub use dist::{AdaptiveCdf1D, AdaptiveCdf2D};
 pub use env::{adaptive_env_sampler, oriented_env_sampler, AdaptiveEnvSampler, OrientedEnvSampler};
+pub use outgoing::{OutgoingBuilder, OutgoingSampler};
 pub use sampler::{adaptive_sampler, average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 pub use simplify::{
     chi_square_error, perpendicular_error, simplifier_by_name, vertical_error, ChiSquareOptimal,

@@ -27,7 +27,7 @@ reference's storage over the sampler's; the noise-free relative variance and fir
 (r_ref t_ref) / (r t), split into its variance part r_ref / r and its time part t_ref / t; \
 build time. The samplers: the reference (default uniform@32x16x256x32), uniform at the \
 default 32x1x256x32, every simplifier at its default tolerance, adaptive:chi2 at the tolerance \
-that keeps --target-efficiency of the reference's efficiency (searched), cosine. The summary \
+that keeps --target-efficiency of the reference's efficiency (searched), outgoing:chi2 at its default tolerance, cosine. The summary \
 gives per sampler the median, the 10th percentile and the worst material of the relative \
 efficiency, and the compression among the materials where it keeps the target.";
 

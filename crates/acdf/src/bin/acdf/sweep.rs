@@ -24,7 +24,9 @@ pub struct Args {
     #[arg(long, value_name = "LIST", help = simplifiers_help())]
     simplifiers: Option<String>,
     /// Tolerances, comma-separated (default: each simplifier's default
-    /// tolerance times 1/16, 1/8, ..., 8).
+    /// tolerance times 1/16, 1/8, ..., 8); for isotropic materials the
+    /// outgoing sampler is swept with the same simplifiers at these
+    /// tolerances times its scale (6).
     #[arg(long, value_name = "LIST")]
     tolerances: Option<String>,
     /// Output directory.

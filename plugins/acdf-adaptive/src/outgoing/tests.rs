@@ -1,0 +1,142 @@
+use super::*;
+
+fn nickel() -> Arc<dyn Brdf> {
+    acdf_materials::builtin("nickel").expect("built-in nickel")
+}
+
+fn small(brdf: Arc<dyn Brdf>) -> OutgoingSampler {
+    let builder = OutgoingBuilder::by_name("chi2", None, 32).unwrap();
+    OutgoingSampler::new(brdf, "8x1x64x16".parse().unwrap(), builder).unwrap()
+}
+
+fn direction(theta: f32, phi: f32) -> Vec3 {
+    Vec3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    )
+}
+
+/// The density is continuous in wo across a breakpoint: just below, at
+/// and just above it, the densities of fixed wi agree to within the
+/// change of the blend weight (against a jump between two different
+/// slices, which a breakpoint picking one slice on each side would give).
+#[test]
+fn pdf_is_continuous_across_a_breakpoint() {
+    let s = small(nickel());
+    let angles = s.breakpoint_angles();
+    assert!(angles.len() >= 3, "{angles:?}");
+    let theta = angles[angles.len() / 2];
+    let wis: Vec<Vec3> = (0..40)
+        .map(|k| direction(0.02 + 1.5 * k as f32 / 40.0, 0.3 + 0.15 * k as f32))
+        .collect();
+    let mut compared = 0;
+    for wi in wis {
+        let at = s.pdf(direction(theta, 0.0), wi);
+        let below = s.pdf(direction(theta - 1e-4, 0.0), wi);
+        let above = s.pdf(direction(theta + 1e-4, 0.0), wi);
+        if at > 0.0 {
+            compared += 1;
+            for p in [below, above] {
+                assert!((p - at).abs() <= 0.02 * at, "{p} against {at} at {wi}");
+            }
+        }
+    }
+    assert!(compared > 20);
+    // The neighbouring slices differ: the continuity is the blend's.
+    let (a, b) = (
+        &s.slices()[angles.len() / 2 - 1],
+        &s.slices()[angles.len() / 2],
+    );
+    assert_ne!(a, b);
+}
+
+/// A mutant that takes the slice of the nearest breakpoint instead of
+/// the blend jumps at the midpoint between breakpoints, which the
+/// continuity test's comparison detects.
+#[test]
+fn nearest_slice_mutant_jumps() {
+    let s = small(nickel());
+    let angles = s.breakpoint_angles();
+    let u = &s.breakpoints;
+    let k = angles.len() / 2;
+    let mid = 0.5 * (u[k] + u[k + 1]);
+    let nx = s.n_phi_h as f32;
+    let ny = s.n_theta_h as f32;
+    let mut jumps = 0;
+    for i in 0..64 {
+        let (x, y) = ((i % 8) as f32 / 8.0 + 0.01, (i / 8) as f32 / 8.0 + 0.01);
+        let (lo, hi) = (
+            s.slices[k].pdf(x, y, nx, ny),
+            s.slices[k + 1].pdf(x, y, nx, ny),
+        );
+        if (lo - hi).abs() > 0.02 * lo.max(hi) {
+            jumps += 1;
+        }
+    }
+    assert!(mid > u[k] && jumps > 0);
+}
+
+/// Saved and loaded, the sampler gives the same densities and storage; a
+/// flipped byte is an error, not a misread.
+#[test]
+fn file_round_trip() {
+    let s = small(nickel()).with_cosine_mix(0.1).unwrap();
+    let bytes = s.to_bytes();
+    let t = OutgoingSampler::from_bytes(&bytes).unwrap();
+    assert_eq!(t.storage_bytes(), s.storage_bytes());
+    assert_eq!(t.brdf().fingerprint(), s.brdf().fingerprint());
+    let wo = direction(0.7, 0.4);
+    for k in 0..100 {
+        let u = Vec2::new((k as f32 + 0.5) / 100.0, (k as f32 * 0.618).fract());
+        assert_eq!(s.sample(wo, u), t.sample(wo, u));
+    }
+    let mut bad = bytes.clone();
+    let mid = bad.len() / 2;
+    bad[mid] ^= 0x10;
+    assert!(OutgoingSampler::from_bytes(&bad).is_err());
+    assert!(OutgoingSampler::from_bytes(&bytes[..bytes.len() - 3]).is_err());
+}
+
+/// Anisotropic materials are refused with a typed error.
+#[test]
+fn anisotropic_materials_are_refused() {
+    struct Aniso(Arc<dyn Brdf>);
+    impl Brdf for Aniso {
+        fn name(&self) -> &str {
+            "aniso"
+        }
+        fn eval(&self, wo: Vec3, wi: Vec3) -> acdf_core::Rgb {
+            self.0.eval(wo, wi)
+        }
+        fn is_isotropic(&self) -> bool {
+            false
+        }
+    }
+    let builder = OutgoingBuilder::by_name("chi2", None, 8).unwrap();
+    let r = OutgoingSampler::new(Arc::new(Aniso(nickel())), Resolution::ISOTROPIC, builder);
+    assert!(matches!(r, Err(Error::InvalidParameter { .. })));
+}
+
+/// A storage cap raises the tolerance and the budget until the sampler
+/// fits: the capped sampler stores at most the cap and records the larger
+/// tolerance; without a cap the same builder stores more.
+#[test]
+fn storage_cap_is_kept() {
+    let mut builder = OutgoingBuilder::by_name("chi2", Some(1e-3), 32).unwrap();
+    assert_eq!(builder.max_bytes, None);
+    let res: Resolution = "8x1x64x16".parse().unwrap();
+    let free = OutgoingSampler::new(nickel(), res, builder.clone()).unwrap();
+    let cap = free.storage_bytes() / 2;
+    builder.max_bytes = Some(cap);
+    let capped = OutgoingSampler::new(nickel(), res, builder).unwrap();
+    assert!(
+        capped.storage_bytes() <= cap,
+        "{} > {cap}",
+        capped.storage_bytes()
+    );
+    assert!(capped.builder().tolerance > 1e-3);
+    // The default tolerance comes with the default cap.
+    let default = OutgoingBuilder::by_name("chi2", None, 32).unwrap();
+    assert_eq!(default.max_bytes, Some(DEFAULT_MAX_BYTES));
+}

@@ -1,0 +1,66 @@
+//! The outgoing sampler of the adaptive plug-in joins the battery: at the
+//! isotropic resolution (128 fine θ_o slices, 256 θ_h x 32 φ_h cells per
+//! kept slice) with the `chi2` simplifier, on the built-in `nickel`,
+//! `lambert` and `near-mirror`, with wo on the normal, between
+//! breakpoints and next to the horizon; and on nickel with wo exactly at
+//! one of its breakpoints and halfway to the next.
+
+use acdf_adaptive::outgoing::FINE_PER_CELL;
+use acdf_adaptive::{OutgoingBuilder, OutgoingSampler};
+use acdf_conformance::{check_sampler_family, sampler_battery, SamplerConfig};
+use acdf_core::Brdf;
+use acdf_tabulated::Resolution;
+use std::sync::Arc;
+
+fn builtins() -> Vec<Arc<dyn Brdf>> {
+    ["nickel", "lambert", "near-mirror"]
+        .iter()
+        .map(|n| acdf_materials::builtin(n).expect("built-in material"))
+        .collect()
+}
+
+fn sampler(name: &str, brdf: Arc<dyn Brdf>) -> acdf_core::Result<OutgoingSampler> {
+    let r = Resolution::ISOTROPIC;
+    let builder = OutgoingBuilder::by_name(name, None, r.theta_o * FINE_PER_CELL)?;
+    OutgoingSampler::new(brdf, r, builder)
+}
+
+fn config(wo_theta_degrees: Vec<f32>) -> SamplerConfig {
+    SamplerConfig {
+        samples: 200_000,
+        cos_theta_cells: 50,
+        phi_cells: 100,
+        wo_theta_degrees,
+        extreme_samples: 2_000,
+        weight_samples: 2_048,
+        ..Default::default()
+    }
+}
+
+sampler_battery!(
+    chi2_outgoing,
+    build = |b| sampler("chi2", b),
+    brdfs = builtins(),
+    config = config(vec![0.0, 40.0, 85.0, 89.5])
+);
+
+/// wo exactly at a breakpoint of nickel (where one slice has all the
+/// weight) and halfway between it and the next (both slices weigh half).
+#[test]
+fn chi2_outgoing_at_and_between_breakpoints() {
+    let nickel = acdf_materials::builtin("nickel").expect("built-in nickel");
+    let built = sampler("chi2", nickel.clone()).expect("nickel builds");
+    let angles = built.breakpoint_angles();
+    assert!(angles.len() >= 3, "{angles:?}");
+    let k = angles.len() / 2;
+    let at = angles[k].to_degrees();
+    let between = (0.5 * (angles[k] + angles[k + 1])).to_degrees();
+    let report = check_sampler_family(
+        "chi2_outgoing_breakpoints",
+        |b| sampler("chi2", b),
+        &[nickel],
+        &config(vec![at, between]),
+    );
+    report.print();
+    assert!(report.passed(), "{report}");
+}
