@@ -71,6 +71,7 @@ pub mod env_registry;
 pub mod env_report;
 pub mod error;
 pub mod material;
+pub mod mitsuba;
 pub mod plot;
 pub mod registry;
 pub mod render;
