@@ -42,7 +42,7 @@ SPP = 16
 #: Renders per renderer and material.
 RUNS = 12
 MAP = "studio_small_03_1k.hdr"
-RGL = "vch_golden_yellow_rgb.bsdf"
+RGL = "ilm_l3_37_matte_rgb.bsdf"
 #: The box filter's side, in texels of the 1k map.
 DOWNSAMPLE = 16
 
