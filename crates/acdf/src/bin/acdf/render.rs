@@ -277,7 +277,7 @@ fn run_scene(
     let err_scale = error_scale(&results);
     let mut tiles = vec![("reference".to_string(), reference.to_rgb8(a.exposure))];
     let mut errors = vec![(
-        format!("|error| white at {err_scale:.3}"),
+        format!("white: error {err_scale:.3}"),
         image::RgbImage::from_pixel(
             a.width as u32,
             height as u32,
@@ -293,12 +293,9 @@ fn run_scene(
         let img = film.to_rgb8(a.exposure);
         acdf::plot::write_png(&png, &img)?;
         written.extend([exr, png]);
-        tiles.push((
-            format!("{} {} spp", r.strategy.name(), film.samples_per_pixel()),
-            img,
-        ));
+        tiles.push((r.strategy.name().to_string(), img));
         errors.push((
-            format!("rmse {:.4}", r.rmse_last),
+            format!("{} spp {:.4}", film.samples_per_pixel(), r.rmse_last),
             film.error_image(&reference, err_scale),
         ));
     }
@@ -318,15 +315,16 @@ fn run_scene(
     Ok(())
 }
 
-/// The scale of the error maps: the largest strategy's RMSE times 3.
+/// The scale of the error maps: four times the smallest RMSE, so that
+/// the best strategy's errors show and worse ones saturate.
 fn error_scale(results: &[Result1]) -> f32 {
     let m = results
         .iter()
         .map(|r| r.rmse_last)
-        .filter(|x| x.is_finite())
-        .fold(0.0f64, f64::max);
-    if m > 0.0 {
-        (3.0 * m) as f32
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    if m.is_finite() {
+        (4.0 * m) as f32
     } else {
         1.0
     }
