@@ -4,9 +4,7 @@
 //! environment maps' convention (`+z` up, [`acdf_lights::latlong`]); maps
 //! read from files are `acdf_lights::EnvMap`.
 
-
 use acdf_core::{Rgb, Vec3};
-
 
 /// Radiance arriving from a direction at infinity.
 pub trait Environment: Send + Sync {

@@ -29,8 +29,8 @@ use acdf_lights::EnvMap;
 
 use crate::error::{Error, Result};
 use crate::render::{
-    CAMERA_EYE, CAMERA_FOV_X_DEGREES, CAMERA_TARGET, PLANE_ALBEDO, PLANE_HALF_SIZE,
-    PLANE_Z, SPHERE_RADIUS,
+    CAMERA_EYE, CAMERA_FOV_X_DEGREES, CAMERA_TARGET, PLANE_ALBEDO, PLANE_HALF_SIZE, PLANE_Z,
+    SPHERE_RADIUS,
 };
 use crate::spec::MaterialSpec;
 
@@ -146,13 +146,20 @@ pub fn scene_xml(scene: &ExportScene) -> Result<String> {
         &mut x,
         "    <!-- acdf render --export-mitsuba: direct light only (path tracing to depth 2). -->",
     );
-    let _ = writeln!(x, "    <default name=\"spp\" value=\"{}\"/>", scene.spp.max(1));
+    let _ = writeln!(
+        x,
+        "    <default name=\"spp\" value=\"{}\"/>",
+        scene.spp.max(1)
+    );
     w(
         &mut x,
         "    <integrator type=\"path\"><integer name=\"max_depth\" value=\"2\"/></integrator>",
     );
     w(&mut x, "    <sensor type=\"perspective\">");
-    let _ = writeln!(x, "        <float name=\"fov\" value=\"{CAMERA_FOV_X_DEGREES}\"/>");
+    let _ = writeln!(
+        x,
+        "        <float name=\"fov\" value=\"{CAMERA_FOV_X_DEGREES}\"/>"
+    );
     w(&mut x, "        <string name=\"fov_axis\" value=\"x\"/>");
     let _ = writeln!(
         x,

@@ -777,7 +777,8 @@ mod tests {
                     let mut c = 0.0f64;
                     for a in 0..q {
                         for b in 0..q {
-                            let f = Vec2::new((a as f32 + 0.5) / q as f32, (b as f32 + 0.5) / q as f32);
+                            let f =
+                                Vec2::new((a as f32 + 0.5) / q as f32, (b as f32 + 0.5) / q as f32);
                             c += n.dot(grid.direction_in_texel(k, j, f)).max(0.0) as f64;
                         }
                     }
@@ -798,12 +799,17 @@ mod tests {
             ("adaptive", Strategy::Light, &acdf_cosine::CosineSampler),
             ("oriented", Strategy::Light, &acdf_cosine::CosineSampler),
             ("uniform-comp", Strategy::Power, &acdf_cosine::CosineSampler),
-            ("adaptive-comp", Strategy::Power, &acdf_cosine::CosineSampler),
+            (
+                "adaptive-comp",
+                Strategy::Power,
+                &acdf_cosine::CosineSampler,
+            ),
             ("adaptive-comp", Strategy::Balance, &adaptive),
             ("adaptive-comp", Strategy::Power, &adaptive),
         ];
         for (env, strategy, sampler) in cases {
-            let light = EnvironmentLight::new(map.clone(), make_env_sampler(env, &map, &o).unwrap());
+            let light =
+                EnvironmentLight::new(map.clone(), make_env_sampler(env, &map, &o).unwrap());
             let surface = Surface {
                 brdf: &lambert,
                 sampler,
@@ -817,7 +823,11 @@ mod tests {
             };
             let z = pooled_z_against(&shader, 400, |n| ALBEDO * irradiance_over_pi(n));
             eprintln!("{env} {strategy:?} {}: pooled z {z:.2}", sampler.name());
-            assert!(z.abs() < 4.0, "{env} {strategy:?} {}: pooled z {z}", sampler.name());
+            assert!(
+                z.abs() < 4.0,
+                "{env} {strategy:?} {}: pooled z {z}",
+                sampler.name()
+            );
         }
     }
 
@@ -835,7 +845,10 @@ mod tests {
         let down = Vec3::new(0.3, 0.0, -1.0).normalize();
         assert!(!g.visible(side, side, down));
         assert!(Geometry { plane: false }.visible(side, side, down));
-        assert!(matches!(g.trace(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z), Hit::Sphere(..)));
+        assert!(matches!(
+            g.trace(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z),
+            Hit::Sphere(..)
+        ));
         assert!(matches!(
             g.trace(Vec3::new(3.0, 0.0, 5.0), -Vec3::Z),
             Hit::Plane(..)

@@ -760,7 +760,11 @@ fn render_writes_every_strategy_and_caches_the_reference() {
     let out = stdout(&o);
     let rows = render_rows(&out, "equal samples (2 spp)");
     let names: Vec<&str> = rows.iter().map(|r| r[0]).collect();
-    assert_eq!(names, ["brdf", "light", "mis-balance", "mis-power"], "{out}");
+    assert_eq!(
+        names,
+        ["brdf", "light", "mis-balance", "mis-power"],
+        "{out}"
+    );
     assert_eq!(rows[2][1], "uniform+uniform-comp");
     for r in &rows {
         let rmse: f64 = r[4].parse().unwrap();
@@ -778,8 +782,8 @@ fn render_writes_every_strategy_and_caches_the_reference() {
     let side = image::open(dir.path().join("blue-metallic-paint-side-by-side.png")).unwrap();
     assert_eq!(side.width(), 5 * 24 + 4 * 4);
     assert!(side.height() > 2 * 16);
-    let svg = std::fs::read_to_string(dir.path().join("blue-metallic-paint-convergence.svg"))
-        .unwrap();
+    let svg =
+        std::fs::read_to_string(dir.path().join("blue-metallic-paint-convergence.svg")).unwrap();
     assert!(svg.contains("mis-power"));
     let o = acdf(&args);
     assert_ok(&o);
@@ -877,7 +881,9 @@ fn render_reads_an_hdr_envmap_and_a_reference() {
     let rows = render_rows(&out, "equal samples");
     let rmse: f64 = rows[0][4].parse().unwrap();
     assert!(rmse < 0.05, "{rows:?}");
-    let exr = image::open(dir.path().join("lambert-brdf.exr")).unwrap().to_rgb32f();
+    let exr = image::open(dir.path().join("lambert-brdf.exr"))
+        .unwrap()
+        .to_rgb32f();
     let values: Vec<f32> = exr.pixels().map(|p| p.0[0]).collect();
     let exact = |x: f32| values.iter().filter(|v| (*v - x).abs() < 1e-5).count();
     assert!(values.iter().all(|v| (0.8 - 1e-5..=1.0 + 1e-5).contains(v)));

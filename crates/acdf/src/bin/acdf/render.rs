@@ -48,7 +48,11 @@ pub struct Args {
     #[arg(long, value_name = "NAME")]
     mis_env_sampler: Option<String>,
     /// Strategies, comma-separated: brdf, light, mis-balance, mis-power.
-    #[arg(long, value_name = "LIST", default_value = "brdf,light,mis-balance,mis-power")]
+    #[arg(
+        long,
+        value_name = "LIST",
+        default_value = "brdf,light,mis-balance,mis-power"
+    )]
     strategies: String,
     /// Image width in pixels.
     #[arg(long, default_value_t = 128)]
@@ -188,7 +192,11 @@ fn run_scene(
         geometry,
         sphere,
         plane,
-        light: if strategy.is_mis() { &mis_light } else { &light },
+        light: if strategy.is_mis() {
+            &mis_light
+        } else {
+            &light
+        },
         strategy,
     };
     let camera = Camera::default();
@@ -244,7 +252,10 @@ fn run_scene(
 
     let mut results = Vec::new();
     for &strategy in strategies {
-        let pb = bar(100, &format!("{} ({})", strategy.name(), samplers_of(strategy)));
+        let pb = bar(
+            100,
+            &format!("{} ({})", strategy.name(), samplers_of(strategy)),
+        );
         let r = render(
             &shader(strategy),
             &camera,
@@ -278,11 +289,7 @@ fn run_scene(
     let mut tiles = vec![("reference".to_string(), reference.to_rgb8(a.exposure))];
     let mut errors = vec![(
         format!("white: error {err_scale:.3}"),
-        image::RgbImage::from_pixel(
-            a.width as u32,
-            height as u32,
-            image::Rgb([255, 255, 255]),
-        ),
+        image::RgbImage::from_pixel(a.width as u32, height as u32, image::Rgb([255, 255, 255])),
     )];
     for r in &results {
         let film = &r.rendered.last;
@@ -366,7 +373,9 @@ fn convergence_plot(
             a.envmap
                 .as_deref()
                 .and_then(Path::file_stem)
-                .map_or("procedural sky".into(), |s| s.to_string_lossy().into_owned())
+                .map_or("procedural sky".into(), |s| s
+                    .to_string_lossy()
+                    .into_owned())
         ),
         panels: vec![Panel {
             x_label: "seconds".into(),
@@ -513,10 +522,14 @@ fn compensated_name(name: &str) -> String {
 fn sky_map() -> Result<EnvMap> {
     let sky = Sky::default();
     let grid = acdf::lights::LatLong::new(SKY_MAP_WIDTH, SKY_MAP_WIDTH / 2);
-    Ok(EnvMap::from_fn(SKY_MAP_WIDTH, SKY_MAP_WIDTH / 2, |k, j| {
-        let d = grid.texel_direction(k, j);
-        sky.radiance(Vec3::new(d.x, d.z, -d.y))
-    })?)
+    Ok(EnvMap::from_fn(
+        SKY_MAP_WIDTH,
+        SKY_MAP_WIDTH / 2,
+        |k, j| {
+            let d = grid.texel_direction(k, j);
+            sky.radiance(Vec3::new(d.x, d.z, -d.y))
+        },
+    )?)
 }
 
 /// The height, after checking sizes, times and exposure, and the memory a
@@ -569,7 +582,9 @@ fn image_error(path: &Path, message: impl std::fmt::Display) -> Error {
 /// Write a film's radiance as OpenEXR, atomically.
 fn write_exr(path: &Path, film: &Film) -> Result<()> {
     let bytes = acdf::mitsuba::exr_bytes(&film.to_rgb32f(), path)?;
-    Ok(acdf_core::fsio::write_atomic(path, |w| w.write_all(&bytes))?)
+    Ok(acdf_core::fsio::write_atomic(path, |w| {
+        w.write_all(&bytes)
+    })?)
 }
 
 /// Read a linear RGB image of `size` as a film.
@@ -589,7 +604,10 @@ fn read_exr(path: &Path, size: (usize, usize)) -> Result<Film> {
         ));
     }
     let radiance: Vec<Vec3> = img.pixels().map(|p| Vec3::from(p.0)).collect();
-    if radiance.iter().any(|v| !v.is_finite() || v.min_element() < 0.0) {
+    if radiance
+        .iter()
+        .any(|v| !v.is_finite() || v.min_element() < 0.0)
+    {
         return Err(image_error(
             path,
             "the reference has NaN, infinite or negative values",
