@@ -596,10 +596,13 @@ pub fn render(
             at_spp = Some((film.clone(), elapsed.as_secs_f64()));
         }
         let f_spp = film.samples_per_pixel() as f64 / target as f64;
-        let f_time = budget
-            .time
-            .map_or(1.0, |t| elapsed.as_secs_f64() / t.as_secs_f64().max(1e-9));
-        progress(f_spp.min(1.0) * 0.5 + f_time.min(1.0) * 0.5);
+        progress(match budget.time {
+            Some(t) => {
+                let f_time = elapsed.as_secs_f64() / t.as_secs_f64().max(1e-9);
+                0.5 * f_spp.min(1.0) + 0.5 * f_time.min(1.0)
+            }
+            None => f_spp.min(1.0),
+        });
     }
     let (at_spp, seconds_at_spp) = at_spp.unwrap_or_else(|| (film.clone(), elapsed.as_secs_f64()));
     Rendered {
