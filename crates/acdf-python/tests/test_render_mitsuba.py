@@ -1,7 +1,8 @@
 """`acdf render` against Mitsuba 3 on the scene `acdf render --export-mitsuba`
 writes: a sphere of an RGL material (Mitsuba's `measured`) and of
 `builtin:lambert` (`diffuse`, albedo 0.8) under one shared environment map,
-64 x 64 pixels, direct light only.
+and the lambert sphere on the ground plane (its shadow, and the plane hiding
+the lower sky), 64 x 64 pixels, direct light only.
 
 The map is a real one (studio_small_03) box-filtered to 64 x 32 texels, so
 that the exported copy (resampled 8x for Mitsuba's interpolated lookup,
@@ -11,8 +12,9 @@ environment sampler; Mitsuba with its `path` integrator to depth 2 (its own
 MIS of BSDF and emitter sampling).
 
 Agreement (render_check.compare): K renders per renderer with independent
-seeds; over the pixels that show only the sphere (found by a Mitsuba render
-of the scene with a black sphere under a constant sky), Welch's t of the image mean and of
+seeds; over the pixels that show only the sphere or the plane (found by a
+Mitsuba render of the scene with black surfaces under a constant sky),
+Welch's t of the image mean and of
 the means of 4 x 4 blocks; pass when |t_pooled| < 4.5 and max |t_block| <
 5.5 (about 3e-4 and, Bonferroni over 16 blocks, 5e-4 two-sided). The same
 check must reject Mitsuba's render with the rotation that brings Mitsuba's
@@ -20,7 +22,7 @@ pole to `+z` without the reflection acdf's azimuth needs (x, y, z) -> (z, x,
 y), instead of (-z, x, y): a map mirrored left to right, the easy mistake.
 
 Skips with the reason when Mitsuba, the `acdf` command or the shared data
-is absent. About 30 s on 2 cores.
+is absent. About 25 s on 2 cores.
 """
 
 from __future__ import annotations
@@ -65,14 +67,15 @@ def small_map(tmp_path_factory) -> Path:
     return path
 
 
-def acdf_renders(acdf_bin: Path, material: str, envmap: Path, out: Path) -> np.ndarray:
+def acdf_renders(acdf_bin: Path, material: str, envmap: Path, out: Path,
+                 extra: tuple[str, ...] = ()) -> np.ndarray:
     """RUNS renders by `acdf render` (mis-power), seeds 100, 101, ...:
     float64 (RUNS, H, W, 3)."""
     images = []
     for k in range(RUNS):
         d = out / f"run{k}"
         subprocess.run(
-            [str(acdf_bin), "render", "--material", material, "--envmap", str(envmap),
+            [str(acdf_bin), "render", "--material", material, "--envmap", str(envmap), *extra,
              "--width", str(WIDTH), "--spp", str(SPP), "--ref-spp", "1",
              "--strategies", "mis-power", "--seed", str(100 + k), "--out", str(d)],
             check=True, capture_output=True, text=True,
@@ -87,9 +90,10 @@ def mitsuba_renders(scene_file: Path) -> np.ndarray:
     return np.stack([np.array(mi.render(sc, seed=100 + k), dtype=np.float64) for k in range(RUNS)])
 
 
-def export(acdf_bin: Path, material: str, envmap: Path, out: Path) -> Path:
+def export(acdf_bin: Path, material: str, envmap: Path, out: Path,
+           extra: tuple[str, ...] = ()) -> Path:
     subprocess.run(
-        [str(acdf_bin), "render", "--material", material, "--envmap", str(envmap),
+        [str(acdf_bin), "render", "--material", material, "--envmap", str(envmap), *extra,
          "--width", str(WIDTH), "--spp", str(SPP), "--export-mitsuba", str(out)],
         check=True, capture_output=True, text=True,
     )
@@ -118,27 +122,28 @@ def on_sphere(images: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(mask[None, :, :, None], images, 0.0)
 
 
-def materials() -> list[str]:
+def cases() -> list[tuple[str, tuple[str, ...]]]:
     rgl = rgl_file(RGL)
-    return ["builtin:lambert", str(rgl) if rgl else "missing-rgl"]
+    return [("builtin:lambert", ()), (str(rgl) if rgl else "missing-rgl", ()),
+            ("builtin:lambert", ("--plane",))]
 
 
-@pytest.mark.parametrize("material", materials(), ids=["lambert", "rgl"])
+@pytest.mark.parametrize("material,extra", cases(), ids=["lambert", "rgl", "lambert-plane"])
 def test_acdf_render_agrees_with_mitsuba(acdf_bin: Path, small_map: Path, tmp_path: Path,
-                                         material: str) -> None:
+                                         material: str, extra: tuple[str, ...]) -> None:
     if material == "missing-rgl":
         pytest.skip(f"skipping: no RGL material ../shared/data/rgl-material-database/{RGL}")
     mi.set_variant("scalar_rgb")
-    scene = export(acdf_bin, material, small_map, tmp_path / "mitsuba")
+    scene = export(acdf_bin, material, small_map, tmp_path / "mitsuba", extra)
     mask = sphere_mask(scene)
     assert mask.sum() > 1000
-    a = on_sphere(acdf_renders(acdf_bin, material, small_map, tmp_path), mask)
+    a = on_sphere(acdf_renders(acdf_bin, material, small_map, tmp_path, extra), mask)
     m = on_sphere(mitsuba_renders(scene), mask)
     c = compare(a, m, SPP)
-    print(f"{Path(material).name}: acdf / Mitsuba, {RUNS} renders of {SPP} spp each: {c}")
+    print(f"{Path(material).name} {' '.join(extra)}: acdf / Mitsuba, {RUNS} renders of {SPP} spp each: {c}")
     assert c.agree, str(c)
 
-    if material == "builtin:lambert":
+    if material == "builtin:lambert" and not extra:
         # The mutant: the azimuth mirrored.
         xml = scene.read_text()
         wrong = xml.replace('<matrix value="0 0 -1 0 ', '<matrix value="0 0 1 0 ')
