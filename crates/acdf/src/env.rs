@@ -1,17 +1,10 @@
-//! Distant environment lights: the procedural sky with a sun that every
-//! experiment uses by default, and latitude-longitude maps read from `.exr`
-//! or `.hdr` files.
-//!
-//! World space has `+y` up. The renderer's camera looks down `-z`, so the sun
-//! is placed in front of the sphere (`+z`) and above it, where its highlight
-//! is visible.
-
-use std::f32::consts::PI;
-use std::path::Path;
+//! The procedural sky with a sun that the efficiency experiments use
+//! (`acdf report`, `sweep`, `survey`, `build --target-efficiency`), in
+//! their frame with `+y` up. `acdf render` bakes it into a map in the
+//! environment maps' convention (`+z` up, [`acdf_lights::latlong`]); maps
+//! read from files are `acdf_lights::EnvMap`.
 
 use acdf_core::{Rgb, Vec3};
-
-use crate::error::{Error, Result};
 
 /// Radiance arriving from a direction at infinity.
 pub trait Environment: Send + Sync {
@@ -95,79 +88,6 @@ impl Environment for Sky {
     }
 }
 
-/// An equirectangular (latitude-longitude) environment map: column u covers
-/// the azimuth φ = atan2(x, −z) from −π to π, row v the polar angle
-/// θ = acos(y) from 0 (up) to π (down).
-#[derive(Debug, Clone)]
-pub struct EnvMap {
-    width: usize,
-    height: usize,
-    texels: Vec<Rgb>,
-}
-
-impl EnvMap {
-    /// Build a map from row-major texels; non-finite and negative values are
-    /// set to 0 so that no NaN reaches an estimate.
-    pub fn from_texels(width: usize, height: usize, mut texels: Vec<Rgb>) -> Result<EnvMap> {
-        if width == 0 || height == 0 || texels.len() != width * height {
-            return Err(Error::InvalidArgument {
-                what: "environment map",
-                value: format!("{width}x{height}"),
-                reason: format!("expected {} texels, got {}", width * height, texels.len()),
-            });
-        }
-        for t in &mut texels {
-            *t = Vec3::new(sanitise(t.x), sanitise(t.y), sanitise(t.z));
-        }
-        Ok(EnvMap {
-            width,
-            height,
-            texels,
-        })
-    }
-
-    /// Read a lat-long `.exr` or `.hdr` file through
-    /// [`acdf_lights::EnvMap::open_repaired`]: the same decoding and
-    /// checks as the environment samplers' maps (typed errors for files
-    /// that cannot be decoded or are not twice as wide as high), with NaN,
-    /// infinite and negative values set to 0 as [`from_texels`](Self::from_texels)
-    /// does. The texels are read in their own convention and looked up in
-    /// this type's (see the type's documentation).
-    pub fn open(path: &Path) -> Result<EnvMap> {
-        let (map, _) = acdf_lights::EnvMap::open_repaired(path)?;
-        let (w, h) = map.size();
-        EnvMap::from_texels(w, h, map.texels().to_vec())
-    }
-
-    /// Width and height in texels.
-    pub fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
-    }
-}
-
-fn sanitise(x: f32) -> f32 {
-    if x.is_finite() && x > 0.0 {
-        x
-    } else {
-        0.0
-    }
-}
-
-impl Environment for EnvMap {
-    /// The nearest texel to (u, v) = (φ/2π + 1/2, θ/π).
-    fn radiance(&self, dir: Vec3) -> Rgb {
-        let dir = dir.normalize_or_zero();
-        if dir == Vec3::ZERO {
-            return Vec3::ZERO;
-        }
-        let u = 0.5 + dir.x.atan2(-dir.z) / (2.0 * PI);
-        let v = dir.y.clamp(-1.0, 1.0).acos() / PI;
-        let col = ((u * self.width as f32) as usize).min(self.width - 1);
-        let row = ((v * self.height as f32) as usize).min(self.height - 1);
-        self.texels[row * self.width + col]
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -180,20 +100,5 @@ mod tests {
         assert!((sky.radiance(Vec3::Y) - sky.zenith).length() < 1e-6);
         assert_eq!(sky.radiance(Vec3::NAN), Vec3::ZERO);
         assert_eq!(sky.radiance(Vec3::ZERO), sky.horizon);
-    }
-
-    #[test]
-    fn envmap_looks_up_up_and_down_rows() {
-        let texels = vec![
-            Vec3::ONE,
-            Vec3::ONE,
-            Vec3::ZERO,
-            Vec3::new(f32::NAN, -1.0, 2.0),
-        ];
-        let map = EnvMap::from_texels(2, 2, texels).unwrap();
-        assert_eq!(map.radiance(Vec3::Y), Vec3::ONE);
-        let down = map.radiance(Vec3::new(0.01, -1.0, 0.0));
-        assert!(down.is_finite() && down.min_element() >= 0.0);
-        assert!(EnvMap::from_texels(2, 2, vec![Vec3::ONE]).is_err());
     }
 }

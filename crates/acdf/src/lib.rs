@@ -4,8 +4,10 @@
 //! command measures, so that tests and other tools call the same code:
 //! the estimator efficiency of a sampler under an environment light
 //! ([`efficiency`]), the per-material results table ([`report`]), the
-//! tolerance sweep of the adaptive simplifiers ([`sweep`]), the sphere
-//! renderer ([`render`]) and the figures ([`plot`]). Environment maps get
+//! tolerance sweep of the adaptive simplifiers ([`sweep`]), the renderer
+//! of a sphere under an environment map with BRDF, light and multiple
+//! importance sampling ([`render`]), its scene for Mitsuba 3 ([`mitsuba`])
+//! and the figures ([`plot`]). Environment maps get
 //! the same: a registry of environment samplers by name ([`env_registry`])
 //! and the storage and irradiance-variance report of `acdf env-report`
 //! ([`env_report`]).
@@ -71,6 +73,7 @@ pub mod env_registry;
 pub mod env_report;
 pub mod error;
 pub mod material;
+pub mod mitsuba;
 pub mod plot;
 pub mod registry;
 pub mod render;
@@ -81,7 +84,7 @@ pub mod sweep;
 pub mod target;
 
 pub use efficiency::{measure_efficiencies, measure_efficiency, Efficiency, EfficiencyConfig};
-pub use env::{EnvMap, Environment, Sky};
+pub use env::{Environment, Sky};
 pub use error::{Error, Result};
 pub use material::{load_material, Material};
 pub use registry::{make_sampler, AnySampler, SamplerOps, SamplerOptions, SAMPLERS};

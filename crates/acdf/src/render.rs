@@ -1,50 +1,346 @@
-//! A test scene for samplers: a unit sphere of one material, lit only by an
-//! environment, seen by an orthographic camera looking down `-z`, shaded by
-//! BRDF sampling alone.
+//! The renderer of `acdf render`: one sphere of a material, optionally on a
+//! square ground plane, lit only by an environment map at infinity, seen by
+//! a pinhole camera, shaded by direct lighting with one of four strategies
+//! (BRDF sampling, light sampling, and their multiple importance sampling
+//! combinations with the balance or the power heuristic).
 //!
-//! For the pixel at (x, y) inside the unit disk the normal is
-//! n = (x, y, sqrt(1 − x² − y²)); with the frame F built from n, the outgoing
-//! direction is ω_o = F⁻¹(+z) and the pixel estimates
+//! # Conventions
 //!
-//! L(ω_o) ≈ (1/N) Σ_k f_r(ω_o, ω_i,k) ⊙ L_env(F ω_i,k) cos θ_i,k / p(ω_i,k)
+//! - World space is the environment's: `+z` up, the latitude-longitude
+//!   convention of [`acdf_lights::latlong`] (row 0 at the zenith, φ from
+//!   `+x` towards `+y`, column 0 at φ = 0). There is one convention: the
+//!   map, the samplers and the scene share it.
+//! - The sphere has radius 1 and its centre at the origin. The ground plane
+//!   is the square |x|, |y| ≤ [`PLANE_HALF_SIZE`] at z = −1 (the sphere
+//!   touches it), a Lambertian grey of albedo [`PLANE_ALBEDO`].
+//! - The camera ([`Camera::default`]) stands at [`CAMERA_EYE`], looks at
+//!   [`CAMERA_TARGET`] with `+z` up and a horizontal field of view of
+//!   [`CAMERA_FOV_X_DEGREES`]; pixel (0, 0) is the top left; each sample
+//!   of a pixel is a ray through a uniform point of the pixel (a box
+//!   filter).
+//! - Shading happens in the local frame of the surface normal
+//!   ([`Frame::from_z`]), `wo` towards the camera, `wi` towards the light.
 //!
-//! with ω_i,k drawn by the sampler (a failed draw adds 0). Pixels outside the
-//! sphere show L_env(−z).
+//! # Estimators
+//!
+//! A camera ray that leaves the scene shows L_env(d). At a surface point x
+//! with normal n the direct light L_o = ∫ f_r(ωo, ωi) L_env(ωi) V(x, ωi)
+//! cos θi dωi is estimated from one camera sample by
+//!
+//! - BRDF sampling: ωi ~ p_f (the BRDF sampler), f L V cos / p_f;
+//! - light sampling: ωi ~ p_l (the environment sampler), the same ratio
+//!   with p_l; a direction below the geometric horizon adds 0;
+//! - MIS: one draw of each, weighted by the balance heuristic
+//!   w_f = p_f / (p_f + p_l) or the power heuristic w_f = p_f² / (p_f² +
+//!   p_l²), the light's draw by w_l = 1 − w_f evaluated at its own
+//!   direction. The light's partner is meant to be a *compensated*
+//!   distribution (`uniform-comp`, `adaptive-comp:S`), which leaves the
+//!   dim texels to the BRDF sampler; the combination stays unbiased
+//!   wherever the BRDF sampler covers the lobe.
+//!
+//! V is 0 where the shadow ray meets the sphere or the plane (the sphere
+//! shadows the plane; the plane hides the lower environment from the
+//! sphere). The plane is shaded with the same strategy, with cosine
+//! sampling as its BRDF sampler. Indirect light is not simulated (the
+//! plane, like every surface, only reflects the environment).
 
 use std::time::{Duration, Instant};
 
-use acdf_core::{Brdf, BxdfSampler, Frame, Vec2, Vec3};
+use acdf_core::{Brdf, BxdfSampler, Frame, Light, Rgb, Vec2, Vec3};
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use crate::env::Environment;
+/// Radius of the sphere, centred at the origin.
+pub const SPHERE_RADIUS: f32 = 1.0;
+/// Height of the ground plane (it touches the sphere).
+pub const PLANE_Z: f32 = -1.0;
+/// Half the side of the square ground plane.
+pub const PLANE_HALF_SIZE: f32 = 20.0;
+/// Albedo of the Lambertian ground plane.
+pub const PLANE_ALBEDO: f32 = 0.5;
+/// Where the camera stands.
+pub const CAMERA_EYE: [f32; 3] = [0.0, -4.0, 1.2];
+/// Where the camera looks.
+pub const CAMERA_TARGET: [f32; 3] = [0.0, 0.0, -0.15];
+/// The camera's horizontal field of view.
+pub const CAMERA_FOV_X_DEGREES: f32 = 38.0;
 
-/// The sphere's radius in image units: it fills the image up to a thin
-/// border.
-const FRAME_HALF_WIDTH: f32 = 1.05;
+/// Ray offset from a surface, in scene units (the sphere has radius 1).
+const EPSILON: f32 = 1e-4;
 
-/// A linear-radiance image that accumulates samples.
+/// How the direct light of a surface point is estimated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Strategy {
+    /// Directions from the BRDF sampler only.
+    Brdf,
+    /// Directions from the environment sampler only.
+    Light,
+    /// One direction from each, weighted by the balance heuristic.
+    Balance,
+    /// One direction from each, weighted by the power heuristic (β = 2).
+    Power,
+}
+
+impl Strategy {
+    /// Every strategy, in the order of tables.
+    pub const ALL: [Strategy; 4] = [
+        Strategy::Brdf,
+        Strategy::Light,
+        Strategy::Balance,
+        Strategy::Power,
+    ];
+
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Brdf => "brdf",
+            Strategy::Light => "light",
+            Strategy::Balance => "mis-balance",
+            Strategy::Power => "mis-power",
+        }
+    }
+
+    /// The strategy of a name of [`Strategy::name`].
+    pub fn from_name(name: &str) -> Option<Strategy> {
+        Strategy::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    /// Whether it draws from both samplers.
+    pub fn is_mis(self) -> bool {
+        matches!(self, Strategy::Balance | Strategy::Power)
+    }
+
+    /// The weight of a direction drawn by the technique of density `own`
+    /// when the other technique has density `other` there: p/(p + q) for
+    /// the balance heuristic, p²/(p² + q²) for the power heuristic, 1 for
+    /// the single-technique strategies. 0 when both densities are 0 or a
+    /// density is not finite and non-negative. For the MIS strategies,
+    /// `weight(a, b) + weight(b, a) = 1` whenever a + b > 0.
+    pub fn weight(self, own: f32, other: f32) -> f32 {
+        let ok = |p: f32| p.is_finite() && p >= 0.0;
+        if !(ok(own) && ok(other)) {
+            return 0.0;
+        }
+        let (a, b) = match self {
+            Strategy::Brdf | Strategy::Light => return 1.0,
+            Strategy::Balance => (own as f64, other as f64),
+            Strategy::Power => ((own as f64).powi(2), (other as f64).powi(2)),
+        };
+        if a + b > 0.0 {
+            (a / (a + b)) as f32
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A pinhole camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// The eye.
+    pub eye: Vec3,
+    /// Unit viewing direction.
+    pub forward: Vec3,
+    /// Unit vector to the image's right.
+    pub right: Vec3,
+    /// Unit vector to the image's top.
+    pub up: Vec3,
+    /// tan of half the horizontal field of view.
+    pub tan_half_x: f32,
+}
+
+impl Default for Camera {
+    /// [`CAMERA_EYE`] looking at [`CAMERA_TARGET`], `+z` up,
+    /// [`CAMERA_FOV_X_DEGREES`].
+    fn default() -> Camera {
+        Camera::look_at(
+            Vec3::from(CAMERA_EYE),
+            Vec3::from(CAMERA_TARGET),
+            Vec3::Z,
+            CAMERA_FOV_X_DEGREES,
+        )
+    }
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target`, with `up` towards the image's
+    /// top and a horizontal field of view of `fov_x_degrees`.
+    pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_x_degrees: f32) -> Camera {
+        let forward = (target - eye).normalize();
+        let right = forward.cross(up).normalize();
+        let up = right.cross(forward);
+        Camera {
+            eye,
+            forward,
+            right,
+            up,
+            tan_half_x: (0.5 * fov_x_degrees.to_radians()).tan(),
+        }
+    }
+
+    /// The unit direction through the image point `p` ∈ [0, 1]² (x to the
+    /// right, y down) of an image of aspect ratio `aspect` = width / height.
+    pub fn direction(&self, p: Vec2, aspect: f32) -> Vec3 {
+        let sx = (2.0 * p.x - 1.0) * self.tan_half_x;
+        let sy = (1.0 - 2.0 * p.y) * self.tan_half_x / aspect;
+        (self.forward + sx * self.right + sy * self.up).normalize()
+    }
+}
+
+/// What a ray meets first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Hit {
+    /// The sphere, at this point with this unit normal.
+    Sphere(Vec3, Vec3),
+    /// The ground plane, at this point.
+    Plane(Vec3),
+    /// Nothing: the environment.
+    Sky,
+}
+
+/// The scene's geometry: the sphere, and the plane if `plane`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Geometry {
+    /// Whether the ground plane is there.
+    pub plane: bool,
+}
+
+impl Geometry {
+    fn sphere_t(o: Vec3, d: Vec3) -> Option<f32> {
+        let b = o.dot(d);
+        let c = o.length_squared() - SPHERE_RADIUS * SPHERE_RADIUS;
+        let disc = b * b - c;
+        if disc < 0.0 {
+            return None;
+        }
+        let s = disc.sqrt();
+        [-b - s, -b + s].into_iter().find(|&t| t > EPSILON)
+    }
+
+    fn plane_t(&self, o: Vec3, d: Vec3) -> Option<f32> {
+        if !self.plane || d.z >= 0.0 {
+            return None;
+        }
+        let t = (PLANE_Z - o.z) / d.z;
+        let p = o + t * d;
+        (t > EPSILON && p.x.abs() <= PLANE_HALF_SIZE && p.y.abs() <= PLANE_HALF_SIZE).then_some(t)
+    }
+
+    /// The first surface along the ray from `o` in the unit direction `d`.
+    pub fn trace(&self, o: Vec3, d: Vec3) -> Hit {
+        let ts = Self::sphere_t(o, d);
+        let tp = self.plane_t(o, d);
+        match (ts, tp) {
+            (Some(s), Some(p)) if p < s => Hit::Plane(o + p * d),
+            (Some(s), _) => {
+                let x = o + s * d;
+                Hit::Sphere(x, x.normalize())
+            }
+            (None, Some(p)) => Hit::Plane(o + p * d),
+            (None, None) => Hit::Sky,
+        }
+    }
+
+    /// Whether the environment is visible from the surface point `x` of
+    /// normal `n` in the unit direction `d`.
+    pub fn visible(&self, x: Vec3, n: Vec3, d: Vec3) -> bool {
+        let o = x + EPSILON * n;
+        Self::sphere_t(o, d).is_none() && self.plane_t(o, d).is_none()
+    }
+}
+
+/// One surface's material and BRDF sampler.
+#[derive(Clone, Copy)]
+pub struct Surface<'a> {
+    /// f_r.
+    pub brdf: &'a dyn Brdf,
+    /// Its sampler.
+    pub sampler: &'a dyn BxdfSampler,
+}
+
+/// Everything one sample of the image needs.
+#[derive(Clone, Copy)]
+pub struct Shader<'a> {
+    /// The geometry.
+    pub geometry: Geometry,
+    /// The sphere.
+    pub sphere: Surface<'a>,
+    /// The plane (used when `geometry.plane`).
+    pub plane: Surface<'a>,
+    /// The environment, and the sampler light sampling draws from.
+    pub light: &'a dyn Light,
+    /// The strategy.
+    pub strategy: Strategy,
+}
+
+impl Shader<'_> {
+    /// One estimate of the radiance arriving at the camera along the ray
+    /// from `o` in the unit direction `d`, with the uniform numbers of
+    /// `rng`. Finite and non-negative.
+    pub fn radiance(&self, o: Vec3, d: Vec3, rng: &mut impl Rng) -> Rgb {
+        let (x, n, surface) = match self.geometry.trace(o, d) {
+            Hit::Sky => return self.light.radiance(d),
+            Hit::Sphere(x, n) => (x, n, self.sphere),
+            Hit::Plane(x) => (x, Vec3::Z, self.plane),
+        };
+        let frame = Frame::from_z(n);
+        let wo = frame.to_local(-d);
+        if wo.z <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let mut sum = Rgb::ZERO;
+        if self.strategy != Strategy::Light {
+            let u = Vec2::new(rng.random(), rng.random());
+            if let Some(s) = surface.sampler.sample(wo, u) {
+                if s.pdf > 0.0 && s.pdf.is_finite() && s.wi.z > 0.0 {
+                    let wi = frame.to_world(s.wi);
+                    let w = if self.strategy.is_mis() {
+                        self.strategy.weight(s.pdf, self.light.pdf(Some(n), wi))
+                    } else {
+                        1.0
+                    };
+                    if w > 0.0 && self.geometry.visible(x, n, wi) {
+                        let f = surface.brdf.eval(wo, s.wi);
+                        sum += f * self.light.radiance(wi) * (w * s.wi.z / s.pdf);
+                    }
+                }
+            }
+        }
+        if self.strategy != Strategy::Brdf {
+            let u = Vec2::new(rng.random(), rng.random());
+            if let Some(s) = self.light.sample(Some(n), u) {
+                let wi = frame.to_local(s.dir);
+                if s.pdf > 0.0 && s.pdf.is_finite() && wi.z > 0.0 {
+                    let w = if self.strategy.is_mis() {
+                        self.strategy.weight(s.pdf, surface.sampler.pdf(wo, wi))
+                    } else {
+                        1.0
+                    };
+                    if w > 0.0 && self.geometry.visible(x, n, s.dir) {
+                        let f = surface.brdf.eval(wo, wi);
+                        sum += f * s.radiance * (w * wi.z / s.pdf);
+                    }
+                }
+            }
+        }
+        if sum.is_finite() {
+            sum.max(Rgb::ZERO)
+        } else {
+            Rgb::ZERO
+        }
+    }
+}
+
+/// A linear-radiance image that accumulates samples: per pixel, the sum
+/// and the sum of squares of the samples.
 #[derive(Debug, Clone)]
 pub struct Film {
     width: usize,
     height: usize,
     sums: Vec<DVec3>,
+    squares: Vec<DVec3>,
     samples_per_pixel: usize,
-}
-
-/// The geometry of one pixel: `None` outside the sphere.
-fn pixel_frame(width: usize, height: usize, col: usize, row: usize) -> Option<(Frame, Vec3)> {
-    let x = (2.0 * (col as f32 + 0.5) / width as f32 - 1.0) * FRAME_HALF_WIDTH;
-    let y = (1.0 - 2.0 * (row as f32 + 0.5) / height as f32) * FRAME_HALF_WIDTH;
-    let r2 = x * x + y * y;
-    if r2 >= 1.0 {
-        return None;
-    }
-    let n = Vec3::new(x, y, (1.0 - r2).sqrt());
-    let frame = Frame::from_z(n);
-    let wo = frame.to_local(Vec3::Z);
-    (wo.z > 0.0).then_some((frame, wo))
 }
 
 fn pixel_seed(seed: u64, pass: u64, pixel: usize) -> u64 {
@@ -56,13 +352,15 @@ fn pixel_seed(seed: u64, pass: u64, pixel: usize) -> u64 {
     h
 }
 
-/// Bytes a render of `width` × `height` pixels with `images` 8-bit
-/// images of that size kept (the compared samplers' and the composite)
-/// takes: the film's f64 RGB sums and the images. Saturates instead of
-/// overflowing; checked against the memory limit before rendering.
-pub fn render_memory_estimate(width: usize, height: usize, images: usize) -> u64 {
+/// Bytes a render of `width` × `height` pixels takes with `films` films
+/// kept (f64 sums and squares) and `images` 8-bit RGB images of that size.
+/// Saturates instead of overflowing; checked against the memory limit
+/// before rendering.
+pub fn render_memory_estimate(width: usize, height: usize, films: usize, images: usize) -> u64 {
     let pixels = (width as u64).saturating_mul(height as u64);
-    let per_pixel = std::mem::size_of::<DVec3>() as u64 + 3 * images as u64;
+    let per_pixel = (2 * std::mem::size_of::<DVec3>() as u64)
+        .saturating_mul(films as u64)
+        .saturating_add(3u64.saturating_mul(images as u64));
     pixels.saturating_mul(per_pixel)
 }
 
@@ -73,7 +371,20 @@ impl Film {
             width,
             height,
             sums: vec![DVec3::ZERO; width * height],
+            squares: vec![DVec3::ZERO; width * height],
             samples_per_pixel: 0,
+        }
+    }
+
+    /// A film holding `radiance` (row-major) as if of one sample per pixel.
+    pub fn from_radiance(width: usize, height: usize, radiance: &[Vec3]) -> Film {
+        let sums: Vec<DVec3> = radiance.iter().map(|v| v.as_dvec3()).collect();
+        Film {
+            width,
+            height,
+            squares: sums.iter().map(|v| *v * *v).collect(),
+            sums,
+            samples_per_pixel: 1,
         }
     }
 
@@ -87,49 +398,29 @@ impl Film {
         self.samples_per_pixel
     }
 
-    /// Whether the pixel shows the sphere.
-    pub fn is_sphere(&self, col: usize, row: usize) -> bool {
-        pixel_frame(self.width, self.height, col, row).is_some()
-    }
-
-    /// Add `spp` samples per pixel, drawn with uniform numbers that depend
-    /// only on (`seed`, `pass`, pixel), in parallel over rows.
-    pub fn add_pass(
-        &mut self,
-        brdf: &dyn Brdf,
-        sampler: &dyn BxdfSampler,
-        env: &dyn Environment,
-        seed: u64,
-        pass: u64,
-        spp: usize,
-    ) {
+    /// Add `spp` samples per pixel of `shader` seen by `camera`, drawn with
+    /// uniform numbers that depend only on (`seed`, `pass`, pixel), in
+    /// parallel over rows.
+    pub fn add_pass(&mut self, shader: &Shader, camera: &Camera, seed: u64, pass: u64, spp: usize) {
         let (width, height) = (self.width, self.height);
-        let background = env.radiance(-Vec3::Z).as_dvec3();
+        let aspect = width as f32 / height.max(1) as f32;
         self.sums
             .par_chunks_mut(width.max(1))
+            .zip(self.squares.par_chunks_mut(width.max(1)))
             .enumerate()
-            .for_each(|(row, sums)| {
-                for (col, sum) in sums.iter_mut().enumerate() {
-                    let Some((frame, wo)) = pixel_frame(width, height, col, row) else {
-                        *sum += background * spp as f64;
-                        continue;
-                    };
+            .for_each(|(row, (sums, squares))| {
+                for (col, (sum, sq)) in sums.iter_mut().zip(squares.iter_mut()).enumerate() {
                     let mut rng =
                         rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed, pass, row * width + col));
                     for _ in 0..spp {
-                        let u = Vec2::new(rng.random(), rng.random());
-                        let Some(s) = sampler.sample(wo, u) else {
-                            continue;
-                        };
-                        if !(s.pdf > 0.0 && s.pdf.is_finite()) {
-                            continue;
-                        }
-                        let f = brdf.eval(wo, s.wi);
-                        let l = env.radiance(frame.to_world(s.wi));
-                        let c = (f * l * (s.wi.z / s.pdf)).as_dvec3();
-                        if c.is_finite() {
-                            *sum += c;
-                        }
+                        let p = Vec2::new(
+                            (col as f32 + rng.random::<f32>()) / width as f32,
+                            (row as f32 + rng.random::<f32>()) / height as f32,
+                        );
+                        let d = camera.direction(p, aspect);
+                        let c = shader.radiance(camera.eye, d, &mut rng).as_dvec3();
+                        *sum += c;
+                        *sq += c * c;
                     }
                 }
             });
@@ -142,40 +433,71 @@ impl Film {
         self.sums.iter().map(|s| (*s / n).as_vec3()).collect()
     }
 
-    /// sqrt of the mean over sphere pixels and the three channels of
-    /// (self − reference)², in linear radiance.
-    pub fn rmse(&self, reference: &Film) -> f64 {
-        let a = self.radiance();
-        let b = reference.radiance();
-        let (mut sum, mut count) = (0.0f64, 0usize);
-        for row in 0..self.height.min(reference.height) {
-            for col in 0..self.width.min(reference.width) {
-                if !self.is_sphere(col, row) {
-                    continue;
-                }
-                let d = (a[row * self.width + col] - b[row * reference.width + col]).as_dvec3();
-                sum += d.length_squared();
-                count += 3;
-            }
+    /// The variance of one sample of every pixel (unbiased, over the
+    /// samples so far; 0 with fewer than two), row-major.
+    pub fn sample_variance(&self) -> Vec<Vec3> {
+        let n = self.samples_per_pixel as f64;
+        if n < 2.0 {
+            return vec![Vec3::ZERO; self.sums.len()];
         }
-        if count == 0 {
-            0.0
-        } else {
-            (sum / count as f64).sqrt()
-        }
+        self.sums
+            .iter()
+            .zip(&self.squares)
+            .map(|(s, q)| ((*q - *s * *s / n) / (n - 1.0)).max(DVec3::ZERO).as_vec3())
+            .collect()
     }
 
-    /// Tone-map to 8-bit sRGB: scale by `exposure`, clamp to [0, 1], apply the
-    /// sRGB transfer curve.
+    /// sqrt of the mean over pixels and the three channels of
+    /// (self − reference)², in linear radiance; `None` when the sizes
+    /// differ.
+    pub fn rmse(&self, reference: &Film) -> Option<f64> {
+        if self.size() != reference.size() {
+            return None;
+        }
+        let (a, b) = (self.radiance(), reference.radiance());
+        let sum: f64 = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (*x - *y).as_dvec3().length_squared())
+            .sum();
+        Some((sum / (3 * a.len().max(1)) as f64).sqrt())
+    }
+
+    /// Tone-map to 8-bit sRGB: scale by `exposure`, clamp to [0, 1], apply
+    /// the sRGB transfer curve.
     pub fn to_rgb8(&self, exposure: f32) -> image::RgbImage {
-        let radiance = self.radiance();
-        let mut img = image::RgbImage::new(self.width as u32, self.height as u32);
-        for (p, l) in img.pixels_mut().zip(radiance) {
-            let c = l * exposure;
-            p.0 = [srgb8(c.x), srgb8(c.y), srgb8(c.z)];
+        to_rgb8(&self.radiance(), self.width, self.height, exposure)
+    }
+
+    /// The absolute error against `reference` as an 8-bit image: black for
+    /// none, white (clamped) at `scale` or more, the channels' mean.
+    pub fn error_image(&self, reference: &Film, scale: f32) -> image::RgbImage {
+        let (a, b) = (self.radiance(), reference.radiance());
+        let err: Vec<Vec3> = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| Vec3::splat((*x - *y).abs().element_sum() / 3.0))
+            .collect();
+        to_rgb8(&err, self.width, self.height, 1.0 / scale.max(1e-30))
+    }
+
+    /// The radiance as a 32-bit float RGB image.
+    pub fn to_rgb32f(&self) -> image::Rgb32FImage {
+        let mut img = image::Rgb32FImage::new(self.width as u32, self.height as u32);
+        for (p, l) in img.pixels_mut().zip(self.radiance()) {
+            p.0 = l.to_array();
         }
         img
     }
+}
+
+fn to_rgb8(radiance: &[Vec3], width: usize, height: usize, exposure: f32) -> image::RgbImage {
+    let mut img = image::RgbImage::new(width as u32, height as u32);
+    for (p, l) in img.pixels_mut().zip(radiance) {
+        let c = *l * exposure;
+        p.0 = [srgb8(c.x), srgb8(c.y), srgb8(c.z)];
+    }
+    img
 }
 
 /// The sRGB transfer curve of a linear value clamped to [0, 1], as a byte.
@@ -193,104 +515,377 @@ pub fn srgb8(linear: f32) -> u8 {
     (v * 255.0 + 0.5) as u8
 }
 
-/// Render with `spp` samples per pixel in passes of at most `pass_spp`,
-/// calling `progress` with the samples per pixel done after each pass.
-#[allow(clippy::too_many_arguments)]
-pub fn render_equal_samples(
-    brdf: &dyn Brdf,
-    sampler: &dyn BxdfSampler,
-    env: &dyn Environment,
-    width: usize,
-    spp: usize,
-    pass_spp: usize,
-    seed: u64,
-    mut progress: impl FnMut(usize),
-) -> Film {
-    let mut film = Film::new(width, width);
-    let pass_spp = pass_spp.max(1);
-    let mut pass = 0u64;
-    while film.samples_per_pixel() < spp {
-        let n = pass_spp.min(spp - film.samples_per_pixel());
-        film.add_pass(brdf, sampler, env, seed, pass, n);
-        pass += 1;
-        progress(film.samples_per_pixel());
-    }
-    film
+/// One point of a convergence curve: after `seconds` of rendering,
+/// `spp` samples per pixel, `rmse` against the reference.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    pub seconds: f64,
+    pub spp: usize,
+    pub rmse: f64,
 }
 
-/// Render passes of one sample per pixel until `budget` has elapsed (at
-/// least one pass), calling `progress` with the elapsed fraction.
-pub fn render_equal_time(
-    brdf: &dyn Brdf,
-    sampler: &dyn BxdfSampler,
-    env: &dyn Environment,
-    width: usize,
-    budget: Duration,
+/// How long to render.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Budget {
+    /// At least this many samples per pixel (the equal-sample figure is
+    /// taken there).
+    pub spp: usize,
+    /// Then go on until this much time has passed, if given (the
+    /// equal-time figure is taken there).
+    pub time: Option<Duration>,
+}
+
+/// The result of [`render`]: the film at the equal-sample point, the final
+/// film (at the equal-time point, if a time was given), and the
+/// convergence curve (one point per pass, RMSE against `reference`).
+#[derive(Debug, Clone)]
+pub struct Rendered {
+    pub at_spp: Film,
+    pub seconds_at_spp: f64,
+    pub last: Film,
+    pub seconds: f64,
+    pub curve: Vec<Progress>,
+}
+
+/// Render `shader` through `camera` onto a `width` × `height` film in
+/// passes of growing size (1, 1, 2, 4, ... samples per pixel, cut to land
+/// on `budget.spp` exactly, then sized to end near `budget.time`), with
+/// the RMSE against `reference` (if given, same size) after each pass;
+/// `progress` gets the fraction done. The rendering time excludes the RMSE.
+pub fn render(
+    shader: &Shader,
+    camera: &Camera,
+    (width, height): (usize, usize),
+    budget: Budget,
     seed: u64,
+    reference: Option<&Film>,
     mut progress: impl FnMut(f64),
-) -> Film {
-    let mut film = Film::new(width, width);
-    let start = Instant::now();
+) -> Rendered {
+    let mut film = Film::new(width, height);
+    let mut curve = Vec::new();
+    let mut elapsed = Duration::ZERO;
+    let mut at_spp = None;
     let mut pass = 0u64;
+    let target = budget.spp.max(1);
     loop {
-        film.add_pass(brdf, sampler, env, seed, pass, 1);
+        let done = film.samples_per_pixel();
+        let n = if done < target {
+            done.max(1).min(target - done)
+        } else {
+            match budget.time {
+                Some(t) if elapsed < t => {
+                    let rate = done as f64 / elapsed.as_secs_f64().max(1e-9);
+                    let left = (t - elapsed).as_secs_f64() * rate;
+                    (left.ceil() as usize).clamp(1, done.max(1))
+                }
+                _ => break,
+            }
+        };
+        let start = Instant::now();
+        film.add_pass(shader, camera, seed, pass, n);
+        elapsed += start.elapsed();
         pass += 1;
-        let elapsed = start.elapsed();
-        progress((elapsed.as_secs_f64() / budget.as_secs_f64().max(1e-9)).min(1.0));
-        if elapsed >= budget {
-            break;
+        if let Some(rmse) = reference.and_then(|r| film.rmse(r)) {
+            curve.push(Progress {
+                seconds: elapsed.as_secs_f64(),
+                spp: film.samples_per_pixel(),
+                rmse,
+            });
         }
+        if film.samples_per_pixel() == target && at_spp.is_none() {
+            at_spp = Some((film.clone(), elapsed.as_secs_f64()));
+        }
+        let f_spp = film.samples_per_pixel() as f64 / target as f64;
+        progress(match budget.time {
+            Some(t) => {
+                let f_time = elapsed.as_secs_f64() / t.as_secs_f64().max(1e-9);
+                0.5 * f_spp.min(1.0) + 0.5 * f_time.min(1.0)
+            }
+            None => f_spp.min(1.0),
+        });
     }
-    film
+    let (at_spp, seconds_at_spp) = at_spp.unwrap_or_else(|| (film.clone(), elapsed.as_secs_f64()));
+    Rendered {
+        at_spp,
+        seconds_at_spp,
+        last: film,
+        seconds: elapsed.as_secs_f64(),
+        curve,
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use acdf_core::Rgb;
+    use acdf_lights::{EnvMap, EnvironmentLight, TableKind};
     use acdf_materials::analytic::Lambert;
+    use acdf_uniform::uniform_env_sampler;
+    use std::sync::Arc;
 
-    /// The Lambertian material of albedo `rho` in every channel.
-    fn lambert(rho: f32) -> Lambert {
-        Lambert::new("lambert", Rgb::splat(rho)).unwrap()
+    /// The sky of the unbiasedness test: radiance `SKY` above the horizon,
+    /// `GROUND` below, in a 32 × 16 map whose rows split at the equator.
+    const SKY: f32 = 2.0;
+    const GROUND: f32 = 0.25;
+    const ALBEDO: f32 = 0.6;
+
+    fn split_map() -> Arc<EnvMap> {
+        Arc::new(
+            EnvMap::from_fn(32, 16, |_, row| {
+                Rgb::splat(if row < 8 { SKY } else { GROUND })
+            })
+            .unwrap(),
+        )
     }
 
-    struct White;
-    impl Environment for White {
-        fn radiance(&self, _dir: Vec3) -> Rgb {
-            Vec3::ONE
+    /// A light whose sampler reports twice its density: a broken partner
+    /// that MIS must be seen to get wrong.
+    struct WrongPdf<L>(L);
+    impl<L: Light> Light for WrongPdf<L> {
+        fn radiance(&self, d: Vec3) -> Rgb {
+            self.0.radiance(d)
+        }
+        fn sample(&self, n: Option<Vec3>, u: Vec2) -> Option<acdf_core::LightSample> {
+            self.0.sample(n, u).map(|mut s| {
+                s.pdf *= 2.0;
+                s
+            })
+        }
+        fn pdf(&self, n: Option<Vec3>, d: Vec3) -> f32 {
+            2.0 * self.0.pdf(n, d)
         }
     }
 
-    /// A white furnace: a Lambertian sphere of albedo 1/2 under unit light
-    /// is 1/2 everywhere with cosine sampling, with no noise.
-    #[test]
-    fn furnace_sphere_is_flat() {
-        let film = render_equal_samples(
-            &lambert(0.5),
-            &acdf_cosine::CosineSampler,
-            &White,
-            16,
-            4,
-            2,
-            1,
-            |_| {},
-        );
-        assert_eq!(film.samples_per_pixel(), 4);
-        let r = film.radiance();
-        for row in 0..16 {
-            for col in 0..16 {
-                let want = if film.is_sphere(col, row) { 0.5 } else { 1.0 };
-                let got = r[row * 16 + col];
-                assert!(
-                    (got - Vec3::splat(want)).abs().max_element() < 1e-4,
-                    "{got} at {col},{row}"
-                );
+    /// Pooled z of the estimates of `shader` along camera rays through a
+    /// grid of points of the sphere against the exact radiance of a
+    /// Lambertian sphere under the split sky, L = ρ (S (1 + n_z) + G (1 −
+    /// n_z)) / 2 (the irradiance of a tilted plane under a uniform upper
+    /// and lower hemisphere), with `n` samples per ray.
+    fn pooled_z(shader: &Shader, n: usize) -> f64 {
+        pooled_z_against(shader, n, |normal| {
+            ALBEDO * (SKY * (1.0 + normal.z) + GROUND * (1.0 - normal.z)) / 2.0
+        })
+    }
+
+    /// Pooled z of the estimates of `shader` (red channel) along camera
+    /// rays through 64 points of the sphere against `want(normal)`, with
+    /// `n` samples per ray.
+    fn pooled_z_against(shader: &Shader, n: usize, want: impl Fn(Vec3) -> f32) -> f64 {
+        let camera = Camera::default();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let (mut diff, mut var) = (0.0f64, 0.0f64);
+        for i in 0..8 {
+            for j in 0..8 {
+                let p = Vec2::new(0.3 + 0.4 * i as f32 / 7.0, 0.25 + 0.4 * j as f32 / 7.0);
+                let d = camera.direction(p, 1.0);
+                let Hit::Sphere(_, normal) = shader.geometry.trace(camera.eye, d) else {
+                    panic!("the grid must hit the sphere");
+                };
+                let want = want(normal);
+                let (mut s, mut s2) = (0.0f64, 0.0f64);
+                for _ in 0..n {
+                    let v = shader.radiance(camera.eye, d, &mut rng).x as f64;
+                    s += v;
+                    s2 += v * v;
+                }
+                let mean = s / n as f64;
+                let sample_var = (s2 - s * s / n as f64) / (n as f64 - 1.0);
+                diff += mean - want as f64;
+                var += sample_var / n as f64;
             }
         }
-        assert!(film.rmse(&film) == 0.0);
-        let img = film.to_rgb8(1.0);
-        assert_eq!(img.dimensions(), (16, 16));
+        diff / var.sqrt().max(1e-300)
+    }
+
+    /// Unbiasedness: on a Lambertian sphere under a sky of two radiances,
+    /// every strategy's estimates at 64 points of the sphere agree with
+    /// the exact radiance: |pooled z| < 4 (two-sided significance 6e-5),
+    /// with the uniform sampler as light-only sampler and the compensated
+    /// one as MIS partner. A partner that misreports its density by 2x is
+    /// rejected (|z| > 4) by both MIS strategies.
+    #[test]
+    fn every_strategy_is_unbiased_and_a_wrong_pdf_is_caught() {
+        let map = split_map();
+        let lambert = Lambert::new("l", Rgb::splat(ALBEDO)).unwrap();
+        let light = EnvironmentLight::new(
+            map.clone(),
+            uniform_env_sampler(&map, TableKind::Luminance).unwrap(),
+        );
+        let comp = EnvironmentLight::new(
+            map.clone(),
+            uniform_env_sampler(&map, TableKind::Compensated).unwrap(),
+        );
+        let wrong = WrongPdf(EnvironmentLight::new(
+            map.clone(),
+            uniform_env_sampler(&map, TableKind::Compensated).unwrap(),
+        ));
+        let surface = Surface {
+            brdf: &lambert,
+            sampler: &acdf_cosine::CosineSampler,
+        };
+        let shader = |strategy, light: &'static dyn Light| Shader {
+            geometry: Geometry { plane: false },
+            sphere: surface,
+            plane: surface,
+            light,
+            strategy,
+        };
+        let light: &'static dyn Light = Box::leak(Box::new(light));
+        let comp: &'static dyn Light = Box::leak(Box::new(comp));
+        let wrong: &'static dyn Light = Box::leak(Box::new(wrong));
+        for (strategy, l) in [
+            (Strategy::Brdf, light),
+            (Strategy::Light, light),
+            (Strategy::Balance, comp),
+            (Strategy::Power, comp),
+        ] {
+            let z = pooled_z(&shader(strategy, l), 400);
+            eprintln!("{strategy:?}: pooled z {z:.2}");
+            assert!(z.abs() < 4.0, "{strategy:?}: pooled z {z}");
+        }
+        for strategy in [Strategy::Balance, Strategy::Power] {
+            let z = pooled_z(&shader(strategy, wrong), 400);
+            eprintln!("{strategy:?}, light pdf doubled: pooled z {z:.2}");
+            assert!(z.abs() > 4.0, "{strategy:?} with a wrong pdf: pooled z {z}");
+        }
+    }
+
+    /// Unbiasedness on a map with structure, with the samplers of the
+    /// registry: a 16 × 8 map of a dim sky, a brighter band and one bright
+    /// texel; a Lambertian sphere's exact radiance ρ/π Σ_t L_t ∫_t max(0,
+    /// n·ω) dω by a 24 × 24 quadrature per texel (uniform in solid angle).
+    /// Light sampling with the plain samplers and MIS with the compensated
+    /// ones, with cosine and with adaptive BRDF sampling: |pooled z| < 4.
+    #[test]
+    fn strategies_with_registry_samplers_match_quadrature() {
+        use crate::env_registry::{make_env_sampler, EnvSamplerOptions};
+        let map = Arc::new(
+            EnvMap::from_fn(16, 8, |k, j| {
+                Rgb::splat(match (k, j) {
+                    (5, 2) => 40.0,
+                    (_, 3) => 2.0,
+                    (_, j) if j > 4 => 0.05,
+                    _ => 0.3,
+                })
+            })
+            .unwrap(),
+        );
+        let grid = map.grid().clone();
+        let texels = map.texels().to_vec();
+        let irradiance_over_pi = move |n: Vec3| {
+            let q = 24;
+            let mut e = 0.0f64;
+            for j in 0..8 {
+                let omega = grid.texel_solid_angle(j);
+                for k in 0..16 {
+                    let mut c = 0.0f64;
+                    for a in 0..q {
+                        for b in 0..q {
+                            let f =
+                                Vec2::new((a as f32 + 0.5) / q as f32, (b as f32 + 0.5) / q as f32);
+                            c += n.dot(grid.direction_in_texel(k, j, f)).max(0.0) as f64;
+                        }
+                    }
+                    e += texels[j * 16 + k].x as f64 * omega * c / (q * q) as f64;
+                }
+            }
+            (e / std::f64::consts::PI) as f32
+        };
+        let lambert = Lambert::new("l", Rgb::splat(ALBEDO)).unwrap();
+        let m = crate::material::Material {
+            spec: crate::spec::MaterialSpec::Builtin("lambert".into()),
+            brdf: Arc::new(lambert.clone()),
+            rgl: None,
+        };
+        let adaptive = crate::registry::make_sampler("adaptive", &m, &Default::default()).unwrap();
+        let o = EnvSamplerOptions::default();
+        let cases: [(&str, Strategy, &dyn BxdfSampler); 6] = [
+            ("adaptive", Strategy::Light, &acdf_cosine::CosineSampler),
+            ("oriented", Strategy::Light, &acdf_cosine::CosineSampler),
+            ("uniform-comp", Strategy::Power, &acdf_cosine::CosineSampler),
+            (
+                "adaptive-comp",
+                Strategy::Power,
+                &acdf_cosine::CosineSampler,
+            ),
+            ("adaptive-comp", Strategy::Balance, &adaptive),
+            ("adaptive-comp", Strategy::Power, &adaptive),
+        ];
+        for (env, strategy, sampler) in cases {
+            let light =
+                EnvironmentLight::new(map.clone(), make_env_sampler(env, &map, &o).unwrap());
+            let surface = Surface {
+                brdf: &lambert,
+                sampler,
+            };
+            let shader = Shader {
+                geometry: Geometry { plane: false },
+                sphere: surface,
+                plane: surface,
+                light: &light,
+                strategy,
+            };
+            let z = pooled_z_against(&shader, 400, |n| ALBEDO * irradiance_over_pi(n));
+            eprintln!("{env} {strategy:?} {}: pooled z {z:.2}", sampler.name());
+            assert!(
+                z.abs() < 4.0,
+                "{env} {strategy:?} {}: pooled z {z}",
+                sampler.name()
+            );
+        }
+    }
+
+    /// The plane shadowed by the sphere: a plane point right below the
+    /// sphere's side sees less of the sky than one far away, and the sphere
+    /// hides the sky straight up from the point under it.
+    #[test]
+    fn the_sphere_shadows_the_plane() {
+        let g = Geometry { plane: true };
+        let under = Vec3::new(0.0, 0.0, PLANE_Z);
+        assert!(!g.visible(under, Vec3::Z, Vec3::Z));
+        assert!(g.visible(Vec3::new(5.0, 0.0, PLANE_Z), Vec3::Z, Vec3::Z));
+        // From the sphere's lower half, the plane hides directions down.
+        let side = Vec3::new(1.0, 0.0, 0.0);
+        let down = Vec3::new(0.3, 0.0, -1.0).normalize();
+        assert!(!g.visible(side, side, down));
+        assert!(Geometry { plane: false }.visible(side, side, down));
+        assert!(matches!(
+            g.trace(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z),
+            Hit::Sphere(..)
+        ));
+        assert!(matches!(
+            g.trace(Vec3::new(3.0, 0.0, 5.0), -Vec3::Z),
+            Hit::Plane(..)
+        ));
+    }
+
+    /// The MIS weights of the two techniques sum to 1 for any densities
+    /// with a positive sum; unusable densities weigh 0; the single
+    /// strategies weigh 1.
+    #[test]
+    fn mis_weights_sum_to_one() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for strategy in [Strategy::Balance, Strategy::Power] {
+            for _ in 0..10_000 {
+                let a = 10f32.powf(rng.random_range(-30.0..30.0));
+                let b = if rng.random::<f32>() < 0.1 {
+                    0.0
+                } else {
+                    10f32.powf(rng.random_range(-30.0..30.0))
+                };
+                let s = strategy.weight(a, b) + strategy.weight(b, a);
+                assert!((s - 1.0).abs() < 1e-6, "{strategy:?} {a} {b}: {s}");
+            }
+            assert_eq!(strategy.weight(0.0, 0.0), 0.0);
+            assert_eq!(strategy.weight(f32::NAN, 1.0), 0.0);
+            assert_eq!(strategy.weight(1.0, f32::INFINITY), 0.0);
+            assert_eq!(strategy.weight(1.0, 1.0), 0.5);
+        }
+        assert_eq!(Strategy::Balance.weight(1.0, 3.0), 0.25);
+        assert_eq!(Strategy::Power.weight(1.0, 3.0), 0.1);
+        assert_eq!(Strategy::Brdf.weight(1.0, 3.0), 1.0);
+        for s in Strategy::ALL {
+            assert_eq!(Strategy::from_name(s.name()), Some(s));
+        }
     }
 
     #[test]
@@ -299,5 +894,18 @@ mod tests {
         assert_eq!(srgb8(f32::NAN), 0);
         assert_eq!(srgb8(2.0), 255);
         assert!(srgb8(0.2) < srgb8(0.5));
+    }
+
+    /// The camera's centre ray looks at the target; image right is +x (the
+    /// camera stands at −y), image top is up.
+    #[test]
+    fn camera_orientation() {
+        let c = Camera::default();
+        let d = c.direction(Vec2::splat(0.5), 1.0);
+        let to_target = (Vec3::from(CAMERA_TARGET) - c.eye).normalize();
+        assert!((d - to_target).length() < 1e-5);
+        assert!(c.right.x > 0.99 && c.up.z > 0.9);
+        assert!(c.direction(Vec2::new(1.0, 0.5), 1.0).x > 0.0);
+        assert!(c.direction(Vec2::new(0.5, 0.0), 1.0).z > d.z);
     }
 }

@@ -713,42 +713,81 @@ fn sweep_writes_csv_json_svg_and_png() {
     assert!(png.width() > 100 && png.height() > 100);
 }
 
+/// The rows of one table of `acdf render`'s output: the lines after the
+/// header that follows `title`, up to the next blank or title line.
+fn render_rows<'a>(out: &'a str, title: &str) -> Vec<Vec<&'a str>> {
+    let mut lines = out.lines().skip_while(|l| !l.starts_with(title)).skip(2);
+    let mut rows = Vec::new();
+    for l in lines.by_ref() {
+        let f: Vec<&str> = l.split(',').collect();
+        if f.len() != 7 {
+            break;
+        }
+        rows.push(f);
+    }
+    rows
+}
+
+/// Every strategy writes a decodable EXR and PNG and an RMSE; the
+/// side-by-side has one tile per strategy and the reference, over a row of
+/// error maps; the convergence plot is written as PNG and SVG; a second run
+/// reuses the cached reference.
 #[test]
-fn render_writes_decodable_pngs_and_prints_rmse() {
+fn render_writes_every_strategy_and_caches_the_reference() {
     let dir = tempfile::tempdir().unwrap();
-    let o = acdf(&[
+    let args = [
         "render",
         "--material",
         "builtin:blue-metallic-paint",
+        "--brdf-sampler",
+        "uniform",
+        "--env-sampler",
+        "uniform",
+        "--plane",
         "--width",
         "24",
+        "--height",
+        "16",
         "--spp",
         "2",
         "--ref-spp",
         "8",
         "--out",
         dir.path().to_str().unwrap(),
-    ]);
+    ];
+    let o = acdf(&args);
     assert_ok(&o);
     let out = stdout(&o);
-    assert!(
-        out.contains("sampler,spp,seconds,rmse,rmse_vs_uniform"),
+    let rows = render_rows(&out, "equal samples (2 spp)");
+    let names: Vec<&str> = rows.iter().map(|r| r[0]).collect();
+    assert_eq!(
+        names,
+        ["brdf", "light", "mis-balance", "mis-power"],
         "{out}"
     );
-    for s in ["cosine", "uniform", "adaptive:dp"] {
-        let line = out
-            .lines()
-            .find(|l| l.starts_with(&format!("{s},")))
-            .unwrap();
-        let rmse: f64 = line.split(',').nth(3).unwrap().parse().unwrap();
-        assert!(rmse.is_finite() && rmse > 0.0, "{line}");
+    assert_eq!(rows[2][1], "uniform+uniform-comp");
+    for r in &rows {
+        let rmse: f64 = r[4].parse().unwrap();
+        assert!(rmse.is_finite() && rmse > 0.0, "{r:?}");
     }
-    for name in ["reference", "cosine", "uniform", "adaptive-dp"] {
+    for name in ["reference", "brdf", "light", "mis-balance", "mis-power"] {
         let img = image::open(dir.path().join(format!("blue-metallic-paint-{name}.png"))).unwrap();
-        assert_eq!((img.width(), img.height()), (24, 24), "{name}");
+        assert_eq!((img.width(), img.height()), (24, 16), "{name}");
+        if name != "reference" {
+            let exr =
+                image::open(dir.path().join(format!("blue-metallic-paint-{name}.exr"))).unwrap();
+            assert_eq!((exr.width(), exr.height()), (24, 16), "{name}");
+        }
     }
     let side = image::open(dir.path().join("blue-metallic-paint-side-by-side.png")).unwrap();
-    assert_eq!(side.width(), 4 * 24 + 3 * 4);
+    assert_eq!(side.width(), 5 * 24 + 4 * 4);
+    assert!(side.height() > 2 * 16);
+    let svg =
+        std::fs::read_to_string(dir.path().join("blue-metallic-paint-convergence.svg")).unwrap();
+    assert!(svg.contains("mis-power"));
+    let o = acdf(&args);
+    assert_ok(&o);
+    assert!(stderr(&o).contains("cached"), "{}", stderr(&o));
 }
 
 #[test]
@@ -758,13 +797,18 @@ fn render_equal_time_runs_at_least_one_pass() {
         "render",
         "--material",
         "builtin:lambert",
-        "--samplers",
+        "--brdf-sampler",
         "cosine",
+        "--env-sampler",
+        "uniform",
+        "--strategies",
+        "brdf,mis-power",
         "--width",
         "8",
+        "--spp",
+        "1",
         "--ref-spp",
         "2",
-        "--equal-time",
         "--seconds",
         "0.05",
         "--out",
@@ -772,10 +816,20 @@ fn render_equal_time_runs_at_least_one_pass() {
     ]);
     assert_ok(&o);
     let out = stdout(&o);
-    assert!(out.contains("equal time"), "{out}");
-    let line = out.lines().find(|l| l.starts_with("cosine,")).unwrap();
-    let spp: usize = line.split(',').nth(1).unwrap().parse().unwrap();
+    let rows = render_rows(&out, "equal time");
+    assert_eq!(rows.len(), 2, "{out}");
+    let spp: usize = rows[0][2].parse().unwrap();
     assert!(spp >= 1);
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--strategies",
+        "brdf,mis",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "mis-balance");
 }
 
 #[test]
@@ -793,43 +847,51 @@ fn render_rejects_a_missing_envmap() {
     assert_one_line_error(&o, "/nonexistent/sky.exr");
 }
 
-/// A latitude-longitude map written as Radiance `.hdr` lights the sphere:
-/// a white map makes a white-furnace image whose sphere pixels are all the
-/// same grey under cosine sampling of a Lambertian material.
+/// A white latitude-longitude map written as Radiance `.hdr` makes a
+/// white furnace: with cosine sampling of a Lambertian material (albedo
+/// 0.8) every sample is 1 (background) or 0.8 (sphere), without noise;
+/// only the pixels on the outline mix the two. A reference of
+/// the wrong size and a file that is not an image are one-line errors.
 #[test]
-fn render_reads_an_hdr_envmap() {
+fn render_reads_an_hdr_envmap_and_a_reference() {
     let dir = tempfile::tempdir().unwrap();
     let map = dir.path().join("white.hdr");
     let img = image::Rgb32FImage::from_pixel(16, 8, image::Rgb([1.0, 1.0, 1.0]));
     image::DynamicImage::ImageRgb32F(img).save(&map).unwrap();
-    let o = acdf(&[
+    let base = [
         "render",
         "--material",
         "builtin:lambert",
-        "--samplers",
+        "--brdf-sampler",
         "cosine",
-        "--reference-sampler",
-        "cosine",
+        "--strategies",
+        "brdf",
         "--width",
         "16",
         "--spp",
-        "2",
-        "--ref-spp",
         "2",
         "--envmap",
         map.to_str().unwrap(),
         "--out",
         dir.path().to_str().unwrap(),
-    ]);
+    ];
+    let o = acdf(&base);
     assert_ok(&o);
-    assert!(stdout(&o).contains("environment map"));
-    let line = stdout(&o)
-        .lines()
-        .find(|l| l.starts_with("cosine,"))
+    let out = stdout(&o);
+    let rows = render_rows(&out, "equal samples");
+    let rmse: f64 = rows[0][4].parse().unwrap();
+    assert!(rmse < 0.05, "{rows:?}");
+    let exr = image::open(dir.path().join("lambert-brdf.exr"))
         .unwrap()
-        .to_string();
-    let rmse: f64 = line.split(',').nth(3).unwrap().parse().unwrap();
-    assert!(rmse < 1e-5, "{line}");
+        .to_rgb32f();
+    let values: Vec<f32> = exr.pixels().map(|p| p.0[0]).collect();
+    let exact = |x: f32| values.iter().filter(|v| (*v - x).abs() < 1e-5).count();
+    assert!(values.iter().all(|v| (0.8 - 1e-5..=1.0 + 1e-5).contains(v)));
+    assert!(exact(0.8) > 40 && exact(1.0) > 40 && exact(0.8) + exact(1.0) > 200);
+    let mut with_ref = base.to_vec();
+    let reference = dir.path().join("lambert-brdf.exr");
+    with_ref.extend(["--reference", reference.to_str().unwrap(), "--height", "8"]);
+    assert_one_line_error(&acdf(&with_ref), "the reference is 16x16");
     let bad = dir.path().join("bad.exr");
     std::fs::write(&bad, b"not an exr").unwrap();
     let o = acdf(&[
@@ -842,6 +904,41 @@ fn render_reads_an_hdr_envmap() {
         dir.path().to_str().unwrap(),
     ]);
     assert_one_line_error(&o, "bad.exr");
+}
+
+/// `--export-mitsuba` writes the scene and the resampled map; a material
+/// Mitsuba cannot read is a one-line error.
+#[test]
+fn render_exports_a_mitsuba_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let export = dir.path().join("mi");
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--plane",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--export-mitsuba",
+        export.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let xml = std::fs::read_to_string(export.join("scene.xml")).unwrap();
+    for s in ["envmap", "diffuse", "rectangle", "\"32\"", "\"24\"", "box"] {
+        assert!(xml.contains(s), "{s}: {xml}");
+    }
+    let map = image::open(export.join("envmap.exr")).unwrap();
+    assert_eq!((map.width(), map.height()), (2048, 1025));
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:nickel",
+        "--export-mitsuba",
+        export.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "builtin:lambert");
 }
 
 /// `acdf build` writes a sampler file; `--sampler-file` loads it and samples

@@ -527,10 +527,7 @@ fn small_render(out: &Path, extra: &[&str]) -> Output {
 fn f8_equal_time_seconds_beyond_a_year_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     for seconds in ["1e30", "inf", "-1", "0"] {
-        let o = small_render(
-            dir.path(),
-            &["--equal-time", &format!("--seconds={seconds}")],
-        );
+        let o = small_render(dir.path(), &[&format!("--seconds={seconds}")]);
         assert_one_line_error(&o, "seconds");
     }
 }

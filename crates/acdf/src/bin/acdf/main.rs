@@ -144,8 +144,9 @@ enum Command {
     /// compression against relative efficiency, and a summary table.
     #[command(after_long_help = survey::COLUMNS)]
     Survey(survey::Args),
-    /// Render a sphere lit by an environment with each sampler and compare
-    /// with a high-count reference.
+    /// Render a sphere under an environment map with BRDF, light and MIS
+    /// sampling and compare with a reference, or export the scene for
+    /// Mitsuba 3.
     Render(render::Args),
     /// Sampling throughput (samples per second) of the 2D distributions and
     /// the BRDF samplers, and the build time of the 4D tables; a table on
