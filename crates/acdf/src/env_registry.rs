@@ -37,15 +37,20 @@ pub struct EnvSamplerOptions {
 }
 
 impl Default for EnvSamplerOptions {
-    /// Default tolerances, 8 × 16 normal cells, defensive share 0.05.
+    /// Default tolerances, 16 × 32 normal cells, defensive share
+    /// [`DEFAULT_DEFENSIVE`].
     fn default() -> Self {
         EnvSamplerOptions {
             tolerance: None,
             normal_cells: NormalGrid::DEFAULT,
-            defensive: OrientedEnvSampler::DEFAULT_DEFENSIVE,
+            defensive: DEFAULT_DEFENSIVE,
         }
     }
 }
+
+/// The oriented sampler's default defensive share (none: each normal's
+/// table covers every texel the normal sees).
+pub const DEFAULT_DEFENSIVE: f32 = OrientedEnvSampler::DEFAULT_DEFENSIVE;
 
 /// One of acdf's environment samplers, dispatched statically.
 #[derive(Debug)]
