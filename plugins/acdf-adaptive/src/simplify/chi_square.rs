@@ -162,8 +162,8 @@ impl Simplifier for ChiSquareOptimal {
         if weights.len() != curves.len() {
             return None;
         }
-        type Cost<'a> = Box<dyn Fn(usize, usize) -> f64 + Send + Sync + 'a>;
-        let matrices: Vec<Option<CostMatrix<Cost<'_>>>> = curves
+        // One closure expression, so one type for every curve's costs.
+        let matrices: Vec<Option<CostMatrix<_>>> = curves
             .iter()
             .zip(weights)
             .map(|((x, p), &w)| {
@@ -177,8 +177,10 @@ impl Simplifier for ChiSquareOptimal {
                 }
                 let s = squared_density_prefix(x, p, n);
                 let scale = w / mass;
-                let cost: Cost<'_> = Box::new(move |i, j| chi_square_cost(x, p, &s, i, j) * scale);
-                Some(CostMatrix::direct(n, cost))
+                let (x, p) = (x.as_slice(), p.as_slice());
+                Some(CostMatrix::direct(n, move |i, j| {
+                    chi_square_cost(x, p, &s, i, j) * scale
+                }))
             })
             .collect();
         // The curves' paths on the threads, their costs summed in order.
@@ -287,21 +289,44 @@ impl<F: Fn(usize, usize) -> f64> CostMatrix<F> {
     }
 
     /// The path minimising segments + lambda cost, and its total cost; ties
-    /// go to the lower cost.
+    /// go to the lower cost. For each end point j, the candidates' values
+    /// are computed in one pass over the start points (which the compiler
+    /// can vectorise: no branch on the data), then the best is picked in
+    /// order.
     fn path(&self, lambda: f64) -> (Vec<usize>, f64) {
         let n = self.n;
-        let mut best = vec![(f64::INFINITY, 0.0f64); n];
+        // One segment has the value 1 + lambda c(0, n - 1) and every other
+        // path at least 2: below 2 the single segment is the answer the
+        // search would find (a low-mass curve at most lambdas).
+        if n >= 2 && n - 1 <= MAX_SPAN {
+            let c = self.get(0, n - 1);
+            if 1.0 + lambda * c < 2.0 {
+                return (vec![0, n - 1], c);
+            }
+        }
+        let mut value = vec![f64::INFINITY; n];
+        let mut total = vec![0.0f64; n];
         let mut from = vec![0usize; n];
-        best[0] = (0.0, 0.0);
+        value[0] = 0.0;
+        let mut cand_value = vec![0.0f64; MAX_SPAN];
+        let mut cand_total = vec![0.0f64; MAX_SPAN];
         for j in 1..n {
-            for i in j.saturating_sub(MAX_SPAN)..j {
+            let lo = j.saturating_sub(MAX_SPAN);
+            let len = j - lo;
+            let (cv, ct) = (&mut cand_value[..len], &mut cand_total[..len]);
+            for (k, (v, t)) in cv.iter_mut().zip(ct.iter_mut()).enumerate() {
+                let i = lo + k;
                 let c = self.get(i, j);
-                let cand = (best[i].0 + 1.0 + lambda * c, best[i].1 + c);
-                if cand.0 < best[j].0 || (cand.0 == best[j].0 && cand.1 < best[j].1) {
-                    best[j] = cand;
-                    from[j] = i;
+                *v = value[i] + 1.0 + lambda * c;
+                *t = total[i] + c;
+            }
+            let (mut bv, mut bt, mut bi) = (f64::INFINITY, 0.0f64, 0usize);
+            for (k, (&v, &t)) in cv.iter().zip(ct.iter()).enumerate() {
+                if v < bv || (v == bv && t < bt) {
+                    (bv, bt, bi) = (v, t, lo + k);
                 }
             }
+            (value[j], total[j], from[j]) = (bv, bt, bi);
         }
         let mut path = vec![n - 1];
         let mut k = n - 1;
@@ -310,7 +335,7 @@ impl<F: Fn(usize, usize) -> f64> CostMatrix<F> {
             path.push(k);
         }
         path.reverse();
-        (path, best[n - 1].1)
+        (path, total[n - 1])
     }
 
     /// The fewest-segment path found whose total cost is at most `tol`.
