@@ -6,7 +6,9 @@
 
 use std::sync::Arc;
 
-use acdf_adaptive::{adaptive_env_sampler, oriented_env_sampler, AdaptiveBuilder};
+use acdf_adaptive::{
+    adaptive_env_sampler, oriented_env_sampler, AdaptiveBuilder, OrientedEnvSampler,
+};
 use acdf_conformance::{
     assert_rejected, check_env_family, check_env_sampler, env_test_maps, env_test_normals, Check,
     EnvConfig, EnvTarget, Report,
@@ -96,8 +98,10 @@ fn adaptive_dp_and_compensated_pass() {
     assert_passed(&report);
 }
 
-/// The orientation-aware mixture over the test normals (the poles, the
-/// seam, near the horizon): exact densities, every lit texel covered, and a
+/// The orientation-aware sampler with its default (no defensive share:
+/// each normal draws from its region's table alone) over the test normals
+/// (the poles, the seam, near the horizon): exact densities, every lit
+/// texel covered by the region's table, and a
 /// divergence from L max(0, n·ω) of at most 2 (the plain luminance table
 /// has 21 for a normal below the structured sky's sun, see below). On the
 /// 1 × 1 and 2 × 1 maps a texel spans a hemisphere, over which max(0, n·ω)
@@ -106,7 +110,12 @@ fn adaptive_dp_and_compensated_pass() {
 fn oriented_follows_the_irradiance_integrand() {
     let builder = AdaptiveBuilder::by_name("dp", None).unwrap();
     let build = |m: &Arc<EnvMap>| {
-        oriented_env_sampler(m.clone(), builder.clone(), NormalGrid::new(4, 8)?, 0.05)
+        oriented_env_sampler(
+            m.clone(),
+            builder.clone(),
+            NormalGrid::new(4, 8)?,
+            OrientedEnvSampler::DEFAULT_DEFENSIVE,
+        )
     };
     let config = EnvConfig {
         samples: 100_000,

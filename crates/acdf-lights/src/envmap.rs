@@ -451,7 +451,8 @@ mod tests {
             std::fs::write(&path, bytes).unwrap();
             path
         };
-        let header = |w: u64, h: u64| format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n");
+        let header =
+            |w: u64, h: u64| format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n");
         // A truncated body.
         let junk = write("junk.hdr", &[header(8, 4).as_bytes(), b"\x02\x02"].concat());
         let e = EnvMap::open(&junk).unwrap_err();
@@ -466,7 +467,16 @@ mod tests {
         // Not lat-long: refused from the header.
         let square = write("square.hdr", header(8, 8).as_bytes());
         let e = EnvMap::open(&square).unwrap_err();
-        assert!(matches!(e, EnvError::NotLatLong { width: 8, height: 8 }), "{e}");
+        assert!(
+            matches!(
+                e,
+                EnvError::NotLatLong {
+                    width: 8,
+                    height: 8
+                }
+            ),
+            "{e}"
+        );
         // Neither format, whatever the name says.
         let text = write("text.exr", b"hello");
         assert!(matches!(EnvMap::open(&text), Err(EnvError::Decode { .. })));
@@ -499,7 +509,10 @@ mod tests {
         });
         let mut bytes = Vec::new();
         image::DynamicImage::ImageRgb32F(img)
-            .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Hdr)
+            .write_to(
+                &mut std::io::Cursor::new(&mut bytes),
+                image::ImageFormat::Hdr,
+            )
             .unwrap();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("small.hdr");

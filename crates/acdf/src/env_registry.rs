@@ -59,7 +59,7 @@ pub enum AnyEnvSampler {
     Uniform(UniformEnvSampler),
     /// `adaptive:S`, `adaptive-comp:S`: curve-simplified CDFs of the texels.
     Adaptive(AdaptiveEnvSampler),
-    /// `oriented:S`: one adaptive table per cell of normals, mixed.
+    /// `oriented:S`: one adaptive table per region of normals.
     Oriented(OrientedEnvSampler),
 }
 
@@ -225,7 +225,7 @@ pub static ENV_SAMPLERS: &[EnvSamplerFamily] = &[
     },
     EnvSamplerFamily {
         name: "oriented",
-        description: "an adaptive table of L max(0, n.w) per cell of normals, built on first use, oriented:SIMPLIFIER",
+        description: "an adaptive table of L max(0, n.w) per region of normals, built on first use, oriented:SIMPLIFIER",
         simplifiers: true,
         in_report: InReport::Plain,
         build: |s, m, o| {
