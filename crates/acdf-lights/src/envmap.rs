@@ -503,17 +503,12 @@ mod tests {
     /// the file and the bytes forms.
     #[test]
     fn written_maps_read_back() {
-        let (w, h) = (16u32, 8u32);
-        let img = image::Rgb32FImage::from_fn(w, h, |x, y| {
-            image::Rgb([x as f32 * 0.25, y as f32, 1.0 + (x * y) as f32])
-        });
-        let mut bytes = Vec::new();
-        image::DynamicImage::ImageRgb32F(img)
-            .write_to(
-                &mut std::io::Cursor::new(&mut bytes),
-                image::ImageFormat::Hdr,
-            )
+        let pixel = |x: u32, y: u32| image::Rgb([x as f32 * 0.25, y as f32, 1.0 + (x * y) as f32]);
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image::Rgb32FImage::from_fn(16, 8, pixel)
+            .write_to(&mut bytes, image::ImageFormat::Hdr)
             .unwrap();
+        let bytes = bytes.into_inner();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("small.hdr");
         std::fs::write(&path, &bytes).unwrap();
