@@ -273,7 +273,12 @@ fn image_format(head: &[u8], path: &Path) -> Result<image::ImageFormat> {
 fn decode_error(path: &Path) -> impl Fn(image::ImageError) -> EnvError + '_ {
     move |e| EnvError::Decode {
         path: path.to_path_buf(),
-        message: e.to_string().replace('\n', " "),
+        message: match e {
+            image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+                "the file ends before the image does (truncated)".to_string()
+            }
+            e => e.to_string().replace('\n', " "),
+        },
     }
 }
 
@@ -457,6 +462,7 @@ mod tests {
         let junk = write("junk.hdr", &[header(8, 4).as_bytes(), b"\x02\x02"].concat());
         let e = EnvMap::open(&junk).unwrap_err();
         assert!(matches!(e, EnvError::Decode { .. }), "{e}");
+        assert!(e.to_string().contains("truncated"), "{e}");
         // A huge declared size: refused from the header, before decoding.
         let huge = write("huge.hdr", header(1 << 20, 1 << 19).as_bytes());
         let e = EnvMap::open(&huge).unwrap_err();
