@@ -243,28 +243,114 @@ impl EnvMap {
     }
 }
 
-/// Decode an image file to linear RGB texels.
-fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<Rgb>)> {
-    let io = |source| EnvError::Io {
+/// Bytes read before the image's size is known: more than the header of
+/// a Radiance or OpenEXR file needs.
+const HEADER_BYTES: usize = 64 << 10;
+
+/// Bytes per texel at the peak of decoding a map: the decoder's f32 image
+/// (up to four channels, 16), its RGB copy (12), the map's texels (12) and
+/// luminance (4).
+const DECODE_BYTES_PER_TEXEL: u64 = 44;
+
+/// The most bytes a file of a given size in texels may hold: 32 per texel
+/// (a 32-bit RGBA OpenEXR image takes 16, a Radiance file 4 or a little
+/// more) and 1 MiB of header and offset tables.
+fn max_file_bytes(texels: u64) -> u64 {
+    acdf_core::limits::bytes_of(texels, 32).saturating_add(1 << 20)
+}
+
+/// The image format of a file: from its first bytes, else from the
+/// extension of `path`.
+fn image_format(head: &[u8], path: &Path) -> Result<image::ImageFormat> {
+    image::guess_format(head)
+        .or_else(|_| image::ImageFormat::from_path(path))
+        .map_err(|_| EnvError::Decode {
+            path: path.to_path_buf(),
+            message: "not an image (neither a Radiance .hdr nor an OpenEXR file)".into(),
+        })
+}
+
+fn decode_error(path: &Path) -> impl Fn(image::ImageError) -> EnvError + '_ {
+    move |e| EnvError::Decode {
         path: path.to_path_buf(),
-        source,
-    };
-    let decode = |e: image::ImageError| EnvError::Decode {
-        path: path.to_path_buf(),
-        message: e.to_string().replace('\n', " "),
-    };
-    let reader = image::ImageReader::open(path)
-        .map_err(io)?
-        .with_guessed_format()
-        .map_err(io)?;
-    let img = reader.decode().map_err(decode)?;
+        message: match e {
+            image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+                "the file ends before the image does (truncated)".to_string()
+            }
+            e => e.to_string().replace('\n', " "),
+        },
+    }
+}
+
+/// The format and size of the image whose first bytes are `head`, read
+/// from its header alone, checked before anything is decoded: a
+/// lat-long size ([`check_size`]) whose decoding fits in the memory limit
+/// (`acdf_core::limits`).
+fn read_header(head: &[u8], path: &Path) -> Result<(image::ImageFormat, usize, usize)> {
+    let format = image_format(head, path)?;
+    let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(head), format)
+        .into_dimensions()
+        .map_err(decode_error(path))?;
+    let (w, h) = (w as usize, h as usize);
+    check_size(w, h, w * h)?;
+    acdf_core::limits::check_memory(
+        &format!("decoding the {w}x{h} environment map"),
+        acdf_core::limits::bytes_of((w * h) as u64, DECODE_BYTES_PER_TEXEL),
+    )?;
+    Ok((format, w, h))
+}
+
+/// Decode a whole image file held in `bytes` to linear RGB texels, with
+/// the decoder's own allocations bounded by the memory limit too.
+fn decode_rgb(
+    bytes: &[u8],
+    format: image::ImageFormat,
+    path: &Path,
+) -> Result<(usize, usize, Vec<Rgb>)> {
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(acdf_core::limits::memory_limit());
+    reader.limits(limits);
+    let img = reader.decode().map_err(decode_error(path))?;
     let rgb = img.to_rgb32f();
+    drop(img);
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
     let texels = rgb
         .pixels()
         .map(|p| Vec3::new(p.0[0], p.0[1], p.0[2]))
         .collect();
     Ok((w, h, texels))
+}
+
+/// Read an image file to linear RGB texels through
+/// `acdf_core::fsio::Input`: the header first (at most 64 KiB, so that a
+/// device such as /dev/zero is refused from its first bytes), its size
+/// checked ([`read_header`]), then the rest of the file, bounded by what
+/// an image of that size can hold.
+fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<Rgb>)> {
+    let mut input = acdf_core::fsio::Input::open(path)?;
+    let mut bytes = input.read_up_to(HEADER_BYTES)?;
+    let (format, w, h) = read_header(&bytes, path)?;
+    let max = max_file_bytes((w * h) as u64)
+        .min(acdf_core::limits::memory_limit())
+        .saturating_sub(bytes.len() as u64);
+    let rest = input.read_rest(max, &format!("what a {w}x{h} image file holds"))?;
+    bytes.extend_from_slice(&rest);
+    drop(rest);
+    decode_rgb(&bytes, format, path)
+}
+
+impl EnvMap {
+    /// A map from the bytes of a whole Radiance `.hdr` or OpenEXR file
+    /// (`path` names it in errors and gives the format when the bytes do
+    /// not), checked as [`open`](Self::open) checks a file: the size from
+    /// the header against the memory limit before decoding, then the
+    /// texels as [`from_rgb`](Self::from_rgb) does.
+    pub fn from_file_bytes(bytes: &[u8], path: &Path) -> Result<EnvMap> {
+        let (format, _, _) = read_header(&bytes[..bytes.len().min(HEADER_BYTES)], path)?;
+        let (w, h, texels) = decode_rgb(bytes, format, path)?;
+        Self::from_rgb(w, h, texels)
+    }
 }
 
 #[cfg(test)]
@@ -364,14 +450,79 @@ mod tests {
     fn files_that_are_not_maps_are_typed_errors() {
         let dir = tempfile::tempdir().unwrap();
         let missing = dir.path().join("none.hdr");
-        assert!(matches!(EnvMap::open(&missing), Err(EnvError::Io { .. })));
-        let junk = dir.path().join("junk.hdr");
-        std::fs::write(
-            &junk,
-            b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n\x02\x02",
-        )
-        .unwrap();
+        assert!(matches!(EnvMap::open(&missing), Err(EnvError::File(_))));
+        let write = |name: &str, bytes: &[u8]| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, bytes).unwrap();
+            path
+        };
+        let header =
+            |w: u64, h: u64| format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n");
+        // A truncated body.
+        let junk = write("junk.hdr", &[header(8, 4).as_bytes(), b"\x02\x02"].concat());
         let e = EnvMap::open(&junk).unwrap_err();
         assert!(matches!(e, EnvError::Decode { .. }), "{e}");
+        assert!(e.to_string().contains("truncated"), "{e}");
+        // A huge declared size: refused from the header, before decoding.
+        let huge = write("huge.hdr", header(1 << 20, 1 << 19).as_bytes());
+        let e = EnvMap::open(&huge).unwrap_err();
+        assert!(
+            matches!(e, EnvError::Core(acdf_core::Error::MemoryLimit { .. })),
+            "{e}"
+        );
+        // Not lat-long: refused from the header.
+        let square = write("square.hdr", header(8, 8).as_bytes());
+        let e = EnvMap::open(&square).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                EnvError::NotLatLong {
+                    width: 8,
+                    height: 8
+                }
+            ),
+            "{e}"
+        );
+        // Neither format, whatever the name says.
+        let text = write("text.exr", b"hello");
+        assert!(matches!(EnvMap::open(&text), Err(EnvError::Decode { .. })));
+        assert!(matches!(
+            EnvMap::from_file_bytes(b"", Path::new("empty.hdr")),
+            Err(EnvError::Decode { .. })
+        ));
+        // A device: refused from its first bytes.
+        #[cfg(unix)]
+        {
+            let e = EnvMap::open(Path::new("/dev/zero")).unwrap_err();
+            assert!(matches!(e, EnvError::Decode { .. }), "{e}");
+            let link = dir.path().join("zero.hdr");
+            std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+            let e = EnvMap::open(&link).unwrap_err();
+            assert!(matches!(e, EnvError::Decode { .. }), "{e}");
+        }
+        for e in [EnvMap::open(&huge), EnvMap::open(&junk)] {
+            assert!(!e.unwrap_err().to_string().contains('\n'));
+        }
+    }
+
+    /// A small map written as a Radiance file reads back the same through
+    /// the file and the bytes forms.
+    #[test]
+    fn written_maps_read_back() {
+        let pixel = |x: u32, y: u32| image::Rgb([x as f32 * 0.25, y as f32, 1.0 + (x * y) as f32]);
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image::Rgb32FImage::from_fn(16, 8, pixel)
+            .write_to(&mut bytes, image::ImageFormat::Hdr)
+            .unwrap();
+        let bytes = bytes.into_inner();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("small.hdr");
+        std::fs::write(&path, &bytes).unwrap();
+        let a = EnvMap::open(&path).unwrap();
+        let b = EnvMap::from_file_bytes(&bytes, &path).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.size(), (16, 8));
+        let t = a.texels()[3 * 16 + 5];
+        assert!((t - Rgb::new(1.25, 3.0, 16.0)).length() < 0.1, "{t}");
     }
 }

@@ -7,12 +7,10 @@ use std::path::PathBuf;
 /// line naming its cause.
 #[derive(Debug, thiserror::Error)]
 pub enum EnvError {
-    /// The file could not be opened or read.
-    #[error("{}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    /// The file could not be opened or read, or is larger than an image of
+    /// the size its header declares can be (`acdf_core::fsio::Input`).
+    #[error("{0}")]
+    File(#[from] acdf_core::fsio::FsError),
 
     /// The file is not an image the decoder reads (unknown format, or a
     /// truncated or corrupt `.hdr`/`.exr`).

@@ -2,22 +2,22 @@
 //! directions roughly in proportion to L(ω) max(0, n·ω), the integrand of
 //! the irradiance, rather than to L(ω) alone.
 //!
-//! The sphere of normals is cut into an equal-area grid of cells
-//! ([`NormalGrid`]); each cell's centre normal n_c gets its own table of
-//! L · Ω · max(0, n_c·ω) ([`oriented_table`]), compressed by the plug-in's
-//! [`TableBuilder`]. A cell is built the first time a query needs it, so a
-//! scene pays only for the orientations it has. For a normal n the sampler
-//! draws from an exact mixture: the neighbouring cells of n (linear in
-//! the grid's coordinates, each weighted by its irradiance too), plus a
-//! defensive share of the plain luminance table, which covers every texel
-//! with light, so that the estimator is unbiased whatever the normal; the
-//! pdf is the mixture's.
+//! The sphere of normals is cut into regions ([`NormalGrid`]): the cells of
+//! an equal-area grid, and a cap around each pole. Each region's node gets
+//! one table ([`oriented_table`]) that follows L · Ω · g, with g the root
+//! mean square of max(0, n·ω) over the normals n within the region's
+//! radius of the node's normal, and that is positive on every texel any
+//! of those normals sees; the plug-in's [`TableBuilder`] compresses it. A
+//! node is built the first time a query needs it, so a scene pays only for
+//! the orientations it has.
 //!
-//! The neighbouring cells are the three corners of the triangle of cell
-//! centres around n (linear weights in (z, φ)), each weighted further by
-//! its table's integral, which is its irradiance: the mixture then
-//! interpolates the integrand L max(0, n·ω) rather than normalised
-//! densities.
+//! A normal draws from its region's table alone, and the density is that
+//! table's: one table searched per draw, whose density comes with the
+//! draw, so a call costs about what a draw from the plain table does. The
+//! estimator is unbiased for every normal because the table covers every
+//! texel the normal sees. An optional defensive share mixes in the plain
+//! luminance table (the mixture's density then needs one lookup in the
+//! table that was not drawn from).
 
 use std::sync::{Arc, OnceLock};
 
@@ -33,32 +33,25 @@ use crate::tables::{luminance_table, oriented_table};
 /// An equal-area grid of `rows` × `columns` cells over the sphere of
 /// normals: row r covers z ∈ [1 − 2(r+1)/R, 1 − 2r/R], column c covers
 /// φ ∈ [2πc/C, 2π(c+1)/C), so every cell has the solid angle 4π/(RC).
-/// Besides the cells' centres, the two poles are interpolation nodes of
-/// their own (indices RC and RC + 1), so that a normal near a pole blends
-/// towards a table made for the pole rather than towards the tilted centres
-/// of the first row only.
+///
+/// Every normal belongs to one node ([`node_of`](Self::node_of)): the cell
+/// holding it, except within a cap around each pole, which belongs to a
+/// node of its own (indices RC and RC + 1), so that the first and last
+/// rows' wedges, which reach the poles, do not stretch over the whole cap.
+/// A cap's angular radius is half the polar angle of the first row's
+/// centres. [`node_radius`](Self::node_radius) bounds the angle between a
+/// node's normal and every normal of its region.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct NormalGrid {
     pub rows: usize,
     pub columns: usize,
 }
 
-/// At most this many nodes take part in one normal's mixture.
-pub const MAX_NODES: usize = 3;
-
-/// The nodes of a normal's mixture and their weights.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Nodes {
-    pub index: [usize; MAX_NODES],
-    pub weight: [f32; MAX_NODES],
-    pub len: usize,
-}
-
 impl NormalGrid {
-    /// The default grid, 8 × 16 cells (each about 0.1 sr).
+    /// The default grid, 16 × 32 cells (each about 0.025 sr).
     pub const DEFAULT: NormalGrid = NormalGrid {
-        rows: 8,
-        columns: 16,
+        rows: 16,
+        columns: 32,
     };
 
     /// A grid of `rows` × `columns` cells, each at least 1 and the product
@@ -80,9 +73,16 @@ impl NormalGrid {
         self.rows * self.columns
     }
 
-    /// The number of interpolation nodes: the cells and the two poles.
+    /// The number of nodes: the cells and the two polar caps.
     pub fn node_count(&self) -> usize {
         self.cell_count() + 2
+    }
+
+    /// cos of the polar caps' angular radius: half the polar angle of the
+    /// first row's centres (z = 1 − 1/R), cos(θ/2) = sqrt((1 + cos θ)/2).
+    #[inline]
+    fn cap_z(&self) -> f64 {
+        (1.0 - 0.5 / self.rows as f64).sqrt()
     }
 
     /// The normal of node `i`: a cell's centre (z halfway through its row,
@@ -98,96 +98,83 @@ impl NormalGrid {
         let (r, c) = (i / self.columns, i % self.columns);
         let z = 1.0 - (2 * r + 1) as f64 / self.rows as f64;
         let phi = std::f64::consts::TAU * (c as f64 + 0.5) / self.columns as f64;
-        let s = (1.0 - z * z).max(0.0).sqrt();
-        Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, z as f32)
+        unit(z, phi)
     }
 
-    /// The nodes whose tables a normal `n` (unit) mixes, with weights
-    /// linear in (z, φ): the square of four cell centres around n is cut
-    /// along a diagonal into two triangles, and n gets the barycentric
-    /// weights of the three corners of its triangle (three tables to
-    /// evaluate per density rather than four). Above the first row's
-    /// centres (below the last row's) the weight moves linearly in z from
-    /// the row's two nearest cells to the pole's node. Zero weights are
-    /// left out; the weights sum to 1.
-    pub fn nodes(&self, n: Vec3) -> Nodes {
+    /// The node whose region holds the unit normal `n`: a polar cap's node
+    /// within the cap, else the cell of n's row (in z) and column (in φ).
+    #[inline]
+    pub fn node_of(&self, n: Vec3) -> usize {
+        let z = n.z.clamp(-1.0, 1.0);
+        let cap = self.cap_z() as f32;
+        if z >= cap {
+            return self.cell_count();
+        }
+        if z <= -cap {
+            return self.cell_count() + 1;
+        }
         let (rows, cols) = (self.rows, self.columns);
-        let sz = (1.0 - n.z.clamp(-1.0, 1.0)) * 0.5 * rows as f32 - 0.5;
-        let sp = acdf_core::geometry::phi(n) * (cols as f32 / std::f32::consts::TAU) - 0.5;
-        let spf = sp.floor();
-        let fp = (sp - spf).clamp(0.0, 1.0);
-        let c0 = (spf as i64).rem_euclid(cols as i64) as usize;
-        let c1 = (c0 + 1) % cols;
-        let mut out = Nodes {
-            index: [0; MAX_NODES],
-            weight: [0.0; MAX_NODES],
-            len: 0,
-        };
-        let mut push = |i: usize, w: f32| {
-            if w > 0.0 {
-                out.index[out.len] = i;
-                out.weight[out.len] = w;
-                out.len += 1;
-            }
-        };
-        let last = (rows - 1) as f32;
-        if sz < 0.0 || sz > last {
-            let (row, pole, lambda) = if sz < 0.0 {
-                (0, self.cell_count(), (-2.0 * sz).min(1.0))
-            } else {
-                (
-                    rows - 1,
-                    self.cell_count() + 1,
-                    (2.0 * (sz - last)).min(1.0),
-                )
-            };
-            push(row * cols + c0, (1.0 - lambda) * (1.0 - fp));
-            push(row * cols + c1, (1.0 - lambda) * fp);
-            push(pole, lambda);
-        } else {
-            let r0 = (sz.floor() as usize).min(rows - 1);
-            let r1 = (r0 + 1).min(rows - 1);
-            let fz = if r1 == r0 { 0.0 } else { sz - r0 as f32 };
-            if fz + fp <= 1.0 {
-                push(r0 * cols + c0, 1.0 - fz - fp);
-                push(r1 * cols + c0, fz);
-                push(r0 * cols + c1, fp);
-            } else {
-                push(r1 * cols + c1, fz + fp - 1.0);
-                push(r1 * cols + c0, 1.0 - fp);
-                push(r0 * cols + c1, 1.0 - fz);
+        let r = (((1.0 - z) * 0.5 * rows as f32) as usize).min(rows - 1);
+        // φ in turns, to within 4e-7 rad (inside the radius's margin).
+        let mut t = acdf_core::fast::fast_atan2(n.y, n.x) * (0.5 * std::f32::consts::FRAC_1_PI);
+        if t < 0.0 {
+            t += 1.0;
+        }
+        let c = ((t * cols as f32).max(0.0) as usize).min(cols - 1);
+        r * cols + c
+    }
+
+    /// A bound on the angle (radians) between node `i`'s normal and every
+    /// normal of its region (with a margin for the rounding of
+    /// [`node_of`](Self::node_of)). A region is bounded by arcs of
+    /// latitude circles and of meridians. Over a latitude arc, the cosine
+    /// of the angle to the node's normal falls with the distance in φ from
+    /// the node's; over a meridian at most a quarter turn away in φ (two
+    /// columns or more) it is concave in z. So the angle is largest at a
+    /// corner of the region; a grid of one column is bounded by π.
+    pub fn node_radius(&self, i: usize) -> f64 {
+        const MARGIN: f64 = 1e-3;
+        let cells = self.cell_count();
+        let cap = self.cap_z();
+        if i >= cells {
+            return cap.acos() + MARGIN;
+        }
+        if self.columns == 1 {
+            return std::f64::consts::PI;
+        }
+        let (r, c) = (i / self.columns, i % self.columns);
+        let (rows, cols) = (self.rows as f64, self.columns as f64);
+        let z_hi = (1.0 - 2.0 * r as f64 / rows).min(cap);
+        let z_lo = (1.0 - 2.0 * (r + 1) as f64 / rows).max(-cap);
+        let tau = std::f64::consts::TAU;
+        let (p0, p1) = (tau * c as f64 / cols, tau * (c + 1) as f64 / cols);
+        let centre = self.node_normal(i).as_dvec3();
+        let mut radius = 0.0f64;
+        for z in [z_lo, z_hi] {
+            for p in [p0, p1] {
+                let corner = unit(z, p).as_dvec3();
+                radius = radius.max(centre.dot(corner).clamp(-1.0, 1.0).acos());
             }
         }
-        out
+        radius + MARGIN
     }
 }
 
-/// One built node: its distribution, and the integral of its table (the
-/// irradiance at the node's normal, up to a constant factor).
-#[derive(Debug)]
-struct Node<D> {
-    dist: D,
-    irradiance: f64,
+/// The unit vector of height `z` and azimuth `phi`.
+fn unit(z: f64, phi: f64) -> Vec3 {
+    let s = (1.0 - z * z).max(0.0).sqrt();
+    Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, z as f32)
 }
 
-/// A node built on first use; `None` inside once built means its table
-/// could not be built.
-type LazyNode<D> = OnceLock<Option<Node<D>>>;
-
-/// The mixture a normal samples from: up to [`MAX_NODES`] node
-/// distributions with their probabilities, and the defensive (plain
-/// luminance) distribution's probability.
-struct Mixture<'a, D> {
-    nodes: [Option<&'a D>; MAX_NODES],
-    prob: [f32; MAX_NODES],
-    len: usize,
-    defensive: f32,
-}
+/// A node's distribution, built on first use; `None` inside once built
+/// means its table could not be built or holds nothing (its normals then
+/// draw from the plain table).
+type LazyNode<D> = OnceLock<Option<D>>;
 
 /// The orientation-aware sampler over a map, generic in the builder of its
 /// tables (see the module documentation).
 ///
-/// Storage: the defensive luminance table and every node built so far
+/// Storage: the plain luminance table and every node built so far
 /// ([`built_nodes`](Self::built_nodes) of [`node_count`](Self::node_count)).
 /// Building is thread-safe: concurrent first queries of one node build it
 /// once.
@@ -215,11 +202,11 @@ impl<B: TableBuilder> std::fmt::Debug for OrientedSampler<B> {
 impl<B: TableBuilder> OrientedSampler<B> {
     /// The default defensive share: the probability of drawing from the
     /// plain luminance table whatever the normal.
-    pub const DEFAULT_DEFENSIVE: f32 = 0.05;
+    pub const DEFAULT_DEFENSIVE: f32 = 0.0;
 
     /// A sampler named `name` over `map` with the normal cells of `grid`,
     /// the tables built by `builder`, and the defensive share `defensive`
-    /// (in (0, 1]; the luminance table is built now, the nodes when first
+    /// (in [0, 1]; the luminance table is built now, the nodes when first
     /// needed).
     pub fn new(
         name: impl Into<String>,
@@ -228,10 +215,10 @@ impl<B: TableBuilder> OrientedSampler<B> {
         grid: NormalGrid,
         defensive: f32,
     ) -> Result<Self> {
-        if !(defensive > 0.0 && defensive <= 1.0) {
+        if !(0.0..=1.0).contains(&defensive) {
             return Err(Error::InvalidParameter {
                 name: "defensive share",
-                reason: format!("must be in (0, 1], got {defensive}"),
+                reason: format!("must be in [0, 1], got {defensive}"),
             });
         }
         let (w, h) = map.size();
@@ -258,7 +245,7 @@ impl<B: TableBuilder> OrientedSampler<B> {
         self.defensive
     }
 
-    /// The number of interpolation nodes (cells and poles).
+    /// The number of nodes (cells and polar caps).
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -282,71 +269,46 @@ impl<B: TableBuilder> OrientedSampler<B> {
         &self.plain
     }
 
-    /// Node `i`, built on first use; `None` if its table could not be built
-    /// (its weight is then 0 and the defensive share covers its directions).
-    fn node(&self, i: usize) -> Option<&Node<B::Dist>> {
+    /// Node `i`'s distribution, built on first use; `None` if its table
+    /// could not be built or is zero (no normal of its region sees light).
+    fn node(&self, i: usize) -> Option<&B::Dist> {
         self.nodes[i]
             .get_or_init(|| {
                 let (w, h) = self.map.size();
-                let table = oriented_table(&self.map, self.grid.node_normal(i));
+                let table = oriented_table(
+                    &self.map,
+                    self.grid.node_normal(i),
+                    self.grid.node_radius(i),
+                );
                 let dist = self.builder.build(&table, w, h).ok()?;
-                let irradiance = dist.integral();
-                Some(Node { dist, irradiance })
+                (dist.integral() > 0.0).then_some(dist)
             })
             .as_ref()
     }
 
-    /// The mixture for the unit normal `n`.
-    fn mixture(&self, n: Vec3) -> Mixture<'_, B::Dist> {
-        let nodes = self.grid.nodes(n);
-        let mut mix = Mixture {
-            nodes: [None; MAX_NODES],
-            prob: [0.0; MAX_NODES],
-            len: 0,
-            defensive: 1.0,
-        };
-        let mut total = 0.0f64;
-        let mut weights = [0.0f64; MAX_NODES];
-        for k in 0..nodes.len {
-            if let Some(node) = self.node(nodes.index[k]) {
-                let w = nodes.weight[k] as f64 * node.irradiance;
-                if w > 0.0 && w.is_finite() {
-                    mix.nodes[mix.len] = Some(&node.dist);
-                    weights[mix.len] = w;
-                    total += w;
-                    mix.len += 1;
-                }
-            }
-        }
-        if total > 0.0 {
-            let share = (1.0 - self.defensive) as f64 / total;
-            for (p, w) in mix.prob.iter_mut().zip(&weights).take(mix.len) {
-                *p = (w * share) as f32;
-            }
-            mix.defensive = self.defensive;
-        } else {
-            mix.len = 0;
-        }
-        mix
-    }
-
-    /// The mixture's density (in the unit square) at the centre of texel
-    /// (column, row).
+    /// The distribution of the unit normal `n`'s node, if it has one.
     #[inline]
-    fn mixture_density(&self, mix: &Mixture<'_, B::Dist>, column: usize, row: usize) -> f32 {
-        let c = self.map.grid().texel_centre(column, row);
-        let mut p = mix.defensive * self.plain.pdf(c);
-        for k in 0..mix.len {
-            if let Some(d) = mix.nodes[k] {
-                p += mix.prob[k] * d.pdf(c);
-            }
-        }
-        p
+    fn node_dist(&self, n: Vec3) -> Option<&B::Dist> {
+        self.node(self.grid.node_of(n))
     }
 
-    fn mixture_pdf(&self, mix: &Mixture<'_, B::Dist>, dir: Vec3) -> f32 {
+    /// The density (in the unit square) for a normal with the node
+    /// distribution `node` at texel (column, row).
+    #[inline]
+    fn density_at(&self, node: Option<&B::Dist>, column: usize, row: usize) -> f32 {
+        let c = self.map.grid().texel_centre(column, row);
+        match node {
+            Some(d) if self.defensive > 0.0 => {
+                (1.0 - self.defensive) * d.pdf(c) + self.defensive * self.plain.pdf(c)
+            }
+            Some(d) => d.pdf(c),
+            None => self.plain.pdf(c),
+        }
+    }
+
+    fn density_of(&self, node: Option<&B::Dist>, dir: Vec3) -> f32 {
         match self.map.grid().texel_of(dir) {
-            Some((k, j)) => self.mixture_density(mix, k, j) * self.map.grid().inv_jacobian(j),
+            Some((k, j)) => self.density_at(node, k, j) * self.map.grid().inv_jacobian(j),
             None => 0.0,
         }
     }
@@ -357,49 +319,48 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
         &self.name
     }
 
-    /// Without a usable normal, a draw from the plain luminance table (with
-    /// its own density). With one, u.x picks a component of the normal's
-    /// mixture (the defensive table first) and is rescaled to draw from it.
+    /// Without a usable normal, a draw from the plain luminance table. With
+    /// one, a draw from the table of the normal's node; with a defensive
+    /// share a > 0, u.x below a draws from the plain table instead (u.x
+    /// rescaled), and the density is the mixture's, of which the drawn
+    /// component's part comes with the draw.
     fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
         let grid = self.map.grid();
-        let Some(n) = usable_normal(normal) else {
+        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        let Some(d) = node else {
             let s = self.plain.sample(u);
-            return finish_draw(grid, s, |_, _| s.pdf, |dir| self.pdf(None, dir));
+            return finish_draw(grid, s, |_, _| s.pdf, |dir| self.density_of(None, dir));
         };
-        let mix = self.mixture(n);
-        let ux = clamp_unit(u.x);
-        let mut dist = &self.plain;
-        let (mut lo, mut width) = (0.0f32, mix.defensive);
-        if ux >= mix.defensive {
-            let mut acc = mix.defensive;
-            for k in 0..mix.len {
-                let p = mix.prob[k];
-                if let Some(d) = mix.nodes[k] {
-                    if p > 0.0 {
-                        (dist, lo, width) = (d, acc, p);
-                    }
-                }
-                acc += p;
-                if ux < acc {
-                    break;
-                }
-            }
+        let a = self.defensive;
+        if a == 0.0 {
+            let s = d.sample(u);
+            return finish_draw(grid, s, |_, _| s.pdf, |dir| self.density_of(node, dir));
         }
-        let ux = ((ux - lo) / width).clamp(0.0, ONE_MINUS_EPSILON);
-        let s = dist.sample(Vec2::new(ux, u.y));
-        finish_draw(
-            grid,
-            s,
-            |k, j| self.mixture_density(&mix, k, j),
-            |dir| self.mixture_pdf(&mix, dir),
-        )
+        let ux = clamp_unit(u.x);
+        if ux < a {
+            let ux = (ux / a).clamp(0.0, ONE_MINUS_EPSILON);
+            let s = self.plain.sample(Vec2::new(ux, u.y));
+            finish_draw(
+                grid,
+                s,
+                |k, j| a * s.pdf + (1.0 - a) * d.pdf(grid.texel_centre(k, j)),
+                |dir| self.density_of(node, dir),
+            )
+        } else {
+            let ux = ((ux - a) / (1.0 - a)).clamp(0.0, ONE_MINUS_EPSILON);
+            let s = d.sample(Vec2::new(ux, u.y));
+            finish_draw(
+                grid,
+                s,
+                |k, j| (1.0 - a) * s.pdf + a * self.plain.pdf(grid.texel_centre(k, j)),
+                |dir| self.density_of(node, dir),
+            )
+        }
     }
 
     fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        match usable_normal(normal) {
-            Some(n) => self.mixture_pdf(&self.mixture(n), dir),
-            None => crate::sampler::texel_density(self.map.grid(), &self.plain, dir),
-        }
+        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        self.density_of(node, dir)
     }
 
     /// The plain table and the nodes built so far.
@@ -409,24 +370,15 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
                 .nodes
                 .iter()
                 .filter_map(|n| n.get().and_then(Option::as_ref))
-                .map(|n| n.dist.storage_bytes())
+                .map(|d| d.storage_bytes())
                 .sum::<usize>()
     }
 
-    /// The mixture is found once for the whole batch.
+    /// The node is found once for the whole batch.
     fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
-        match usable_normal(normal) {
-            Some(n) => {
-                let mix = self.mixture(n);
-                for (o, &d) in out.iter_mut().zip(dir) {
-                    *o = self.mixture_pdf(&mix, d);
-                }
-            }
-            None => {
-                for (o, &d) in out.iter_mut().zip(dir) {
-                    *o = self.pdf(None, d);
-                }
-            }
+        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        for (o, &d) in out.iter_mut().zip(dir) {
+            *o = self.density_of(node, d);
         }
     }
 }
@@ -435,34 +387,35 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
 mod tests {
     use super::*;
 
+    /// Every normal's node is within the node's radius of it; the poles
+    /// and the caps go to the polar nodes; a cell's centre to its cell.
     #[test]
-    fn node_weights_sum_to_one_and_poles_use_their_node() {
-        let g = NormalGrid::new(4, 6).unwrap();
-        for n in [
-            Vec3::Z,
-            -Vec3::Z,
-            Vec3::X,
-            Vec3::new(0.3, -0.4, 0.5).normalize(),
-            Vec3::new(0.0, -1e-7, 1.0).normalize(),
-            Vec3::new(1.0, -0.0, 0.0),
-        ] {
-            let nodes = g.nodes(n);
-            let sum: f32 = nodes.weight[..nodes.len].iter().sum();
-            assert!((sum - 1.0).abs() < 1e-5, "{n}: {sum}");
-            assert!(nodes.index[..nodes.len].iter().all(|&i| i < g.node_count()));
-        }
-        let north = g.nodes(Vec3::Z);
-        assert_eq!((north.len, north.index[0]), (1, g.cell_count()));
-        let south = g.nodes(-Vec3::Z);
-        assert_eq!((south.len, south.index[0]), (1, g.cell_count() + 1));
-        // A cell's own centre uses that cell alone.
-        for i in [0, 7, 23] {
-            let nodes = g.nodes(g.node_normal(i));
-            let best = (0..nodes.len)
-                .max_by(|&a, &b| nodes.weight[a].total_cmp(&nodes.weight[b]))
-                .unwrap();
-            assert_eq!(nodes.index[best], i);
-            assert!(nodes.weight[best] > 0.999);
+    fn every_normal_is_within_its_nodes_radius() {
+        for (rows, cols) in [(1, 1), (1, 2), (4, 6), (8, 16), (16, 32)] {
+            let g = NormalGrid::new(rows, cols).unwrap();
+            assert_eq!(g.node_of(Vec3::Z), g.cell_count());
+            assert_eq!(g.node_of(-Vec3::Z), g.cell_count() + 1);
+            for i in 0..g.cell_count() {
+                assert_eq!(g.node_of(g.node_normal(i)), i, "{rows}x{cols} cell {i}");
+            }
+            // A fine lattice over (z, φ), with the seam, the cap edges and
+            // the row edges.
+            let steps = 400;
+            for a in 0..=steps {
+                let z = 1.0 - 2.0 * a as f64 / steps as f64;
+                for b in 0..=steps {
+                    let phi = std::f64::consts::TAU * b as f64 / steps as f64;
+                    let n = unit(z, phi).normalize();
+                    let i = g.node_of(n);
+                    assert!(i < g.node_count());
+                    let angle = (g.node_normal(i).dot(n) as f64).clamp(-1.0, 1.0).acos();
+                    assert!(
+                        angle <= g.node_radius(i),
+                        "{rows}x{cols}: {n} in node {i} at {angle} > {}",
+                        g.node_radius(i)
+                    );
+                }
+            }
         }
         assert!(NormalGrid::new(0, 3).is_err());
     }

@@ -61,17 +61,25 @@ pub fn compensated_table(map: &EnvMap) -> Vec<f32> {
     }
 }
 
-/// Y · Ω · c per texel for the normal `normal` (unit), where c is
-/// max(0, n·ω_c) at the texel's centre ω_c, except on texels that the
-/// horizon of n cuts: there c is at least half the largest n·ω over the
-/// texel (bounded through the texel's angular radius), so that every texel
-/// with a lit part gets a positive value. The table follows the integrand
-/// of the irradiance E(n) = ∫ L max(0, n·ω) dω.
-pub fn oriented_table(map: &EnvMap, normal: Vec3) -> Vec<f32> {
+/// Y · Ω · g per texel for the normals within the angle `radius` of
+/// `normal` (unit): the table of an orientation-aware sampler's node, whose
+/// normals all draw from it.
+///
+/// g(α), with α the angle from `normal` to the texel's centre, is the root
+/// mean square of max(0, n·ω) over the normals n of the cap of that radius
+/// (by a midpoint rule over the cap), which minimises the mean over the cap
+/// of the estimator's second moment for a texel of constant radiance. A
+/// texel that some normal of the cap sees in part (α within 90° plus the
+/// radius and the texel's own angular radius) gets at least a small
+/// positive g, so that every texel any of the normals sees has a positive
+/// density: the table follows the integrand of the irradiance
+/// E(n) = ∫ L max(0, n·ω) dω and covers it for every n of the cap.
+pub fn oriented_table(map: &EnvMap, normal: Vec3, radius: f64) -> Vec<f32> {
     let grid = map.grid();
     let (w, h) = grid.size();
     let n = normal.as_dvec3().normalize_or_zero();
-    // Column centres (cos φ, sin φ) and row centres (sin θ, cos θ, radius).
+    let g = CapWeight::new(radius);
+    // Column centres (cos φ, sin φ).
     let columns: Vec<(f64, f64)> = (0..w)
         .map(|k| {
             let (p0, p1) = grid.column_phis(k);
@@ -85,8 +93,12 @@ pub fn oriented_table(map: &EnvMap, normal: Vec3) -> Vec<f32> {
         let (t0, t1) = grid.row_thetas(j);
         let cos_t = 0.5 * (t0.cos() + t1.cos());
         let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let r = grid.texel_radius(j);
-        let (cos_r, sin_r) = (r.cos(), r.sin());
+        let reach = radius + grid.texel_radius(j);
+        let (cos_r, sin_r) = if reach < 0.5 * std::f64::consts::PI {
+            (reach.cos(), reach.sin())
+        } else {
+            (0.0, 1.0)
+        };
         let omega = grid.texel_solid_angle(j);
         for (k, &(cp, sp)) in columns.iter().enumerate() {
             let y = lum[j * w + k] as f64;
@@ -94,20 +106,17 @@ pub fn oriented_table(map: &EnvMap, normal: Vec3) -> Vec<f32> {
                 out.push(0.0);
                 continue;
             }
-            let c = n.x * sin_t * cp + n.y * sin_t * sp + n.z * cos_t;
-            let c = c.clamp(-1.0, 1.0);
+            let c = (n.x * sin_t * cp + n.y * sin_t * sp + n.z * cos_t).clamp(-1.0, 1.0);
             let s = (1.0 - c * c).max(0.0).sqrt();
-            // cos(α − r) and cos(α + r), α the angle to the centre.
+            // cos(α − reach): positive when a normal of the cap sees part
+            // of the texel.
             let upper = if c >= cos_r {
                 1.0
             } else {
                 c * cos_r + s * sin_r
             };
-            let lower = c * cos_r - s * sin_r;
-            let weight = if lower >= 0.0 {
-                c
-            } else if upper > 0.0 {
-                c.max(0.5 * upper)
+            let weight = if upper > 0.0 {
+                g.at(c).max(1e-3 * upper)
             } else {
                 0.0
             };
@@ -115,6 +124,56 @@ pub fn oriented_table(map: &EnvMap, normal: Vec3) -> Vec<f32> {
         }
     }
     out
+}
+
+/// g(cos α) of [`oriented_table`]: the root mean square of max(0, n·ω)
+/// over the normals n of a cap, tabulated in cos α and interpolated
+/// linearly.
+struct CapWeight {
+    values: Vec<f64>,
+}
+
+impl CapWeight {
+    const POINTS: usize = 512;
+
+    fn new(radius: f64) -> CapWeight {
+        // The cap by a midpoint rule, equal in solid angle: rings equal in
+        // cos β, points equal in ψ.
+        const RINGS: usize = 12;
+        const AROUND: usize = 24;
+        let cos_cap = radius.min(std::f64::consts::PI).cos();
+        let ring: Vec<(f64, f64)> = (0..RINGS)
+            .map(|i| {
+                let cb = 1.0 - (1.0 - cos_cap) * (i as f64 + 0.5) / RINGS as f64;
+                (cb, (1.0 - cb * cb).max(0.0).sqrt())
+            })
+            .collect();
+        let around: Vec<f64> = (0..AROUND)
+            .map(|i| (std::f64::consts::TAU * (i as f64 + 0.5) / AROUND as f64).cos())
+            .collect();
+        let values = (0..Self::POINTS)
+            .map(|i| {
+                let c = -1.0 + 2.0 * i as f64 / (Self::POINTS - 1) as f64;
+                let s = (1.0 - c * c).max(0.0).sqrt();
+                let mut sum = 0.0;
+                for &(cb, sb) in &ring {
+                    for &cpsi in &around {
+                        let d = (c * cb + s * sb * cpsi).max(0.0);
+                        sum += d * d;
+                    }
+                }
+                (sum / (RINGS * AROUND) as f64).sqrt()
+            })
+            .collect();
+        CapWeight { values }
+    }
+
+    fn at(&self, c: f64) -> f64 {
+        let x = (c.clamp(-1.0, 1.0) + 1.0) * 0.5 * (Self::POINTS - 1) as f64;
+        let i = (x as usize).min(Self::POINTS - 2);
+        let f = x - i as f64;
+        self.values[i] * (1.0 - f) + self.values[i + 1] * f
+    }
 }
 
 /// f(Y, row) · Ω_row per texel.
@@ -162,7 +221,7 @@ mod tests {
     fn oriented_tables_keep_every_texel_with_a_lit_part() {
         let map = EnvMap::from_fn(64, 32, |_, _| Rgb::ONE).unwrap();
         let n = Vec3::new(0.3, -0.2, 0.9).normalize();
-        let t = oriented_table(&map, n);
+        let t = oriented_table(&map, n, 0.0);
         let g = map.grid();
         for j in 0..32 {
             for k in 0..64 {

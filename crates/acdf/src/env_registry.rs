@@ -37,15 +37,20 @@ pub struct EnvSamplerOptions {
 }
 
 impl Default for EnvSamplerOptions {
-    /// Default tolerances, 8 × 16 normal cells, defensive share 0.05.
+    /// Default tolerances, 16 × 32 normal cells, defensive share
+    /// [`DEFAULT_DEFENSIVE`].
     fn default() -> Self {
         EnvSamplerOptions {
             tolerance: None,
             normal_cells: NormalGrid::DEFAULT,
-            defensive: OrientedEnvSampler::DEFAULT_DEFENSIVE,
+            defensive: DEFAULT_DEFENSIVE,
         }
     }
 }
+
+/// The oriented sampler's default defensive share (none: each normal's
+/// table covers every texel the normal sees).
+pub const DEFAULT_DEFENSIVE: f32 = OrientedEnvSampler::DEFAULT_DEFENSIVE;
 
 /// One of acdf's environment samplers, dispatched statically.
 #[derive(Debug)]
@@ -54,7 +59,7 @@ pub enum AnyEnvSampler {
     Uniform(UniformEnvSampler),
     /// `adaptive:S`, `adaptive-comp:S`: curve-simplified CDFs of the texels.
     Adaptive(AdaptiveEnvSampler),
-    /// `oriented:S`: one adaptive table per cell of normals, mixed.
+    /// `oriented:S`: one adaptive table per region of normals.
     Oriented(OrientedEnvSampler),
 }
 
@@ -220,7 +225,7 @@ pub static ENV_SAMPLERS: &[EnvSamplerFamily] = &[
     },
     EnvSamplerFamily {
         name: "oriented",
-        description: "an adaptive table of L max(0, n.w) per cell of normals, built on first use, oriented:SIMPLIFIER",
+        description: "an adaptive table of L max(0, n.w) per region of normals, built on first use, oriented:SIMPLIFIER",
         simplifiers: true,
         in_report: InReport::Plain,
         build: |s, m, o| {

@@ -1,8 +1,9 @@
 //! End-to-end tests of the environment subcommands (`env-sample`,
 //! `env-pdf`, `env-report`) on small maps written by the test, and their
-//! bad inputs: a truncated `.hdr`, an image that is not lat-long, a black
-//! map, NaN texels, an unknown sampler. Each gives one line on stderr and a
-//! non-zero exit, no panic and nothing NaN on stdout.
+//! bad inputs: a truncated `.hdr`, a header declaring a huge size,
+//! /dev/zero, an image that is not lat-long, a black map, NaN texels, an
+//! unknown sampler. Each gives one line on stderr and a non-zero exit, no
+//! panic and nothing NaN on stdout.
 
 mod common;
 
@@ -179,8 +180,22 @@ fn bad_maps_and_names_are_one_line_errors() {
             [1.0, 1.0, 1.0]
         }
     });
+    // A header declaring 2^20 x 2^19 texels on no body: refused from the
+    // header, before anything is allocated or read.
+    let huge = dir.path().join("huge.hdr");
+    std::fs::write(
+        &huge,
+        b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 524288 +X 1048576\n",
+    )
+    .unwrap();
+    // A device behind a map's name: refused from its first bytes.
+    let zero = dir.path().join("zero.hdr");
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
     let path = |p: &PathBuf| p.to_str().unwrap().to_string();
     for (map, needle) in [
+        (path(&huge), "more than the memory limit"),
+        (path(&zero), "cannot decode"),
+        ("/dev/zero".to_string(), "not an image"),
         (path(&truncated), "cannot decode"),
         (path(&square), "twice as wide"),
         (path(&black), "every texel is 0"),

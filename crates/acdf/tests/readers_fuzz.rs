@@ -1,6 +1,6 @@
 //! Fuzz-style tests of every reader of outside input (issue 29): MERL
-//! tables, RGL `.bsdf` files, Neural-BRDF weights, saved samplers and the
-//! directions read from stdin. Each starts from a valid input and applies
+//! tables, RGL `.bsdf` files, Neural-BRDF weights, saved samplers, Radiance
+//! `.hdr` environment maps and the directions read from stdin. Each starts from a valid input and applies
 //! random edits (bit flips, overwritten counts and offsets with extreme
 //! values, cuts, appended and inserted bytes), or takes random bytes, for a
 //! fixed number of proptest cases with a fixed seed (proptest's default
@@ -13,9 +13,8 @@
 //! `persist::read_file`, `NbrdfLibrary::read_files`) are exercised too, on
 //! edits that lie about sizes in the header.
 //!
-//! Adding a reader (the HDR environment maps, once acdf reads them itself)
-//! is one `fuzz_reader!` line below, with a seed and a function from bytes
-//! to a checked result.
+//! Adding a reader is one `fuzz_reader!` line below, with a seed and a
+//! function from bytes to a checked result.
 
 use std::sync::OnceLock;
 
@@ -277,6 +276,56 @@ fn adaptive_seed() -> &'static [u8] {
     })
 }
 
+/// A 32 x 16 map with a bright spot, as a Radiance file (run-length
+/// encoded scanlines, as the `image` crate writes them).
+fn hdr_seed() -> &'static [u8] {
+    static SEED: OnceLock<Vec<u8>> = OnceLock::new();
+    cell(&SEED, || {
+        let img = image::Rgb32FImage::from_fn(32, 16, |x, y| {
+            let spot = if (x, y) == (5, 3) { 50.0 } else { 0.0 };
+            image::Rgb([0.2 + spot, 0.1 * y as f32, 1.0 / (1.0 + x as f32)])
+        });
+        let mut bytes = Vec::new();
+        image::DynamicImage::ImageRgb32F(img)
+            .write_to(
+                &mut std::io::Cursor::new(&mut bytes),
+                image::ImageFormat::Hdr,
+            )
+            .unwrap();
+        bytes
+    })
+}
+
+/// An environment map read from the bytes of a `.hdr` file: on success,
+/// finite non-negative texels and a sampler whose draws have finite,
+/// positive densities that its pdf agrees with.
+fn read_hdr(bytes: &[u8]) {
+    let Ok(map) = acdf::lights::EnvMap::from_file_bytes(bytes, std::path::Path::new("fuzz.hdr"))
+    else {
+        return;
+    };
+    assert!(map
+        .texels()
+        .iter()
+        .all(|t| t.is_finite() && t.min_element() >= 0.0));
+    if map.is_black() {
+        return;
+    }
+    let map = std::sync::Arc::new(map);
+    let s = acdf::env_registry::make_env_sampler(
+        "adaptive:dp",
+        &map,
+        &acdf::env_registry::EnvSamplerOptions::default(),
+    )
+    .unwrap();
+    for u in [Vec2::new(0.1, 0.2), Vec2::new(0.7, 0.9)] {
+        if let Some(d) = acdf_core::SphereSampler::sample(&s, None, u) {
+            assert!(d.pdf.is_finite() && d.pdf > 0.0 && d.dir.is_finite());
+            assert_eq!(acdf_core::SphereSampler::pdf(&s, None, d.dir), d.pdf);
+        }
+    }
+}
+
 fn read_merl(bytes: &[u8]) {
     if let Ok(t) = MerlTable::from_bytes(bytes, "fuzz.binary") {
         check_brdf(&t);
@@ -339,9 +388,7 @@ fuzz_reader!(rgl_shared_file, 12, real_rgl_seed, read_rgl);
 fuzz_reader!(nbrdf_weights, 300, nbrdf_seed, read_nbrdf);
 fuzz_reader!(uniform_sampler_files, 300, uniform_seed, read_uniform);
 fuzz_reader!(adaptive_sampler_files, 300, adaptive_seed, read_adaptive);
-// HDR environment maps: once acdf reads them with its own reader, add
-// `fuzz_reader!(hdr_images, 200, hdr_seed, read_hdr);` with a small valid
-// image as the seed and a `read_hdr` that loads it and checks its texels.
+fuzz_reader!(hdr_images, 300, hdr_seed, read_hdr);
 
 /// The file forms, on inputs whose header lies about the size: each is
 /// refused from the header and the file's size, before the body is read.

@@ -4,8 +4,9 @@
 //!
 //! - [`AdaptiveEnvSampler`]: the luminance table (`adaptive:NAME`) or its
 //!   compensated form (`adaptive-comp:NAME`);
-//! - [`OrientedEnvSampler`]: one adaptive table per cell of normals, built
-//!   on first use, mixed exactly for a shading normal (`oriented:NAME`).
+//! - [`OrientedEnvSampler`]: one adaptive table per region of normals (a
+//!   cell of a grid, or a polar cap), built on first use; a shading normal
+//!   draws from its region's table (`oriented:NAME`).
 
 use std::sync::Arc;
 

@@ -1,5 +1,7 @@
 //! Few vertices under a chi-square (variance) budget (`chi2`).
 
+use rayon::prelude::*;
+
 use super::{sanitize, trivial, usable_len, ErrorBound, Simplifier};
 
 /// Cell densities f_k = (p_{k+1} - p_k) / (x_{k+1} - x_k) in running sums:
@@ -92,7 +94,7 @@ impl Simplifier for ChiSquareOptimal {
         if mass.is_nan() || mass <= 0.0 {
             return vec![0, n - 1];
         }
-        let cost = CostMatrix::new(n, |i, j| chi_square_cost(x, p, &s, i, j) / mass);
+        let cost = CostMatrix::direct(n, |i, j| chi_square_cost(x, p, &s, i, j) / mass);
         cost.lagrangian(sanitize(tolerance))
     }
 
@@ -132,7 +134,7 @@ impl Simplifier for ChiSquareOptimal {
             }
             rows[r + 1] = rows[r] + row;
         }
-        let cost = CostMatrix::new(n_y + 1, |i, j| {
+        let cost = CostMatrix::cached(n_y + 1, |i, j| {
             let mut acc = 0.0;
             for c in 0..n_x {
                 let col = sum[j * n_x + c] - sum[i * n_x + c];
@@ -157,13 +159,11 @@ impl Simplifier for ChiSquareOptimal {
         weights: &[f64],
         tolerance: f64,
     ) -> Option<Vec<Vec<usize>>> {
-        if weights.len() != curves.len()
-            || curves.iter().any(|(x, p)| usable_len(x, p) > MAX_CACHED)
-        {
+        if weights.len() != curves.len() {
             return None;
         }
-        type Cost<'a> = Box<dyn Fn(usize, usize) -> f64 + 'a>;
-        let matrices: Vec<Option<CostMatrix<Cost<'_>>>> = curves
+        // One closure expression, so one type for every curve's costs.
+        let matrices: Vec<Option<CostMatrix<_>>> = curves
             .iter()
             .zip(weights)
             .map(|((x, p), &w)| {
@@ -177,33 +177,29 @@ impl Simplifier for ChiSquareOptimal {
                 }
                 let s = squared_density_prefix(x, p, n);
                 let scale = w / mass;
-                let cost: Cost<'_> = Box::new(move |i, j| chi_square_cost(x, p, &s, i, j) * scale);
-                Some(CostMatrix::new(n, cost))
+                let (x, p) = (x.as_slice(), p.as_slice());
+                Some(CostMatrix::direct(n, move |i, j| {
+                    chi_square_cost(x, p, &s, i, j) * scale
+                }))
             })
             .collect();
+        // The curves' paths on the threads, their costs summed in order.
         let solve = |lambda: Option<f64>| {
-            let mut total = 0.0;
-            let paths: Vec<Vec<usize>> = curves
-                .iter()
+            let solved: Vec<(Vec<usize>, f64)> = curves
+                .par_iter()
                 .zip(&matrices)
                 .map(|((x, p), m)| {
                     let n = usable_len(x, p);
                     match (m, lambda) {
-                        (Some(m), Some(l)) => {
-                            let (path, c) = m.path(l);
-                            total += c;
-                            path
-                        }
-                        (Some(m), None) => {
-                            total += m.get(0, n - 1);
-                            vec![0, n - 1]
-                        }
-                        (None, _) if n <= 2 => (0..n).collect(),
-                        (None, _) => vec![0, n - 1],
+                        (Some(m), Some(l)) => m.path(l),
+                        (Some(m), None) => (vec![0, n - 1], m.get(0, n - 1)),
+                        (None, _) if n <= 2 => ((0..n).collect(), 0.0),
+                        (None, _) => (vec![0, n - 1], 0.0),
                     }
                 })
                 .collect();
-            (paths, total)
+            let total = solved.iter().map(|s| s.1).sum::<f64>();
+            (solved.into_iter().map(|s| s.0).collect::<Vec<_>>(), total)
         };
         let tol = sanitize(tolerance);
         let (ends, cost) = solve(None);
@@ -243,11 +239,16 @@ impl Simplifier for ChiSquareOptimal {
 /// that very long curves cost O(n MAX_SPAN) per lambda, not O(n^2).
 const MAX_SPAN: usize = 1024;
 
-/// Curves up to this many points get their segment costs cached.
+/// Curves up to this many points get their segment costs cached when a
+/// cost is expensive to evaluate.
 const MAX_CACHED: usize = 4096;
 
 /// The cost c(i, j) of the segments i < j of a curve of n points (single
-/// cells cost 0), cached in a matrix for short curves.
+/// cells cost 0), either evaluated when asked (a cost of O(1) from running
+/// sums: cheaper than reading an n × n matrix, which the shortest path
+/// reads down its columns, and without its n² memory) or cached in a
+/// matrix for short curves (an expensive cost, such as the merge of whole
+/// rows).
 struct CostMatrix<F: Fn(usize, usize) -> f64> {
     n: usize,
     cost: F,
@@ -255,7 +256,17 @@ struct CostMatrix<F: Fn(usize, usize) -> f64> {
 }
 
 impl<F: Fn(usize, usize) -> f64> CostMatrix<F> {
-    fn new(n: usize, cost: F) -> Self {
+    /// Costs evaluated when asked.
+    fn direct(n: usize, cost: F) -> Self {
+        Self {
+            n,
+            cost,
+            cache: None,
+        }
+    }
+
+    /// Costs cached for curves up to [`MAX_CACHED`] points.
+    fn cached(n: usize, cost: F) -> Self {
         let cache = (n <= MAX_CACHED).then(|| {
             let mut m = vec![0.0; n * n];
             for i in 0..n {
@@ -278,21 +289,44 @@ impl<F: Fn(usize, usize) -> f64> CostMatrix<F> {
     }
 
     /// The path minimising segments + lambda cost, and its total cost; ties
-    /// go to the lower cost.
+    /// go to the lower cost. For each end point j, the candidates' values
+    /// are computed in one pass over the start points (which the compiler
+    /// can vectorise: no branch on the data), then the best is picked in
+    /// order.
     fn path(&self, lambda: f64) -> (Vec<usize>, f64) {
         let n = self.n;
-        let mut best = vec![(f64::INFINITY, 0.0f64); n];
+        // One segment has the value 1 + lambda c(0, n - 1) and every other
+        // path at least 2: below 2 the single segment is the answer the
+        // search would find (a low-mass curve at most lambdas).
+        if n >= 2 && n - 1 <= MAX_SPAN {
+            let c = self.get(0, n - 1);
+            if 1.0 + lambda * c < 2.0 {
+                return (vec![0, n - 1], c);
+            }
+        }
+        let mut value = vec![f64::INFINITY; n];
+        let mut total = vec![0.0f64; n];
         let mut from = vec![0usize; n];
-        best[0] = (0.0, 0.0);
+        value[0] = 0.0;
+        let mut cand_value = vec![0.0f64; MAX_SPAN];
+        let mut cand_total = vec![0.0f64; MAX_SPAN];
         for j in 1..n {
-            for i in j.saturating_sub(MAX_SPAN)..j {
+            let lo = j.saturating_sub(MAX_SPAN);
+            let len = j - lo;
+            let (cv, ct) = (&mut cand_value[..len], &mut cand_total[..len]);
+            for (k, (v, t)) in cv.iter_mut().zip(ct.iter_mut()).enumerate() {
+                let i = lo + k;
                 let c = self.get(i, j);
-                let cand = (best[i].0 + 1.0 + lambda * c, best[i].1 + c);
-                if cand.0 < best[j].0 || (cand.0 == best[j].0 && cand.1 < best[j].1) {
-                    best[j] = cand;
-                    from[j] = i;
+                *v = value[i] + 1.0 + lambda * c;
+                *t = total[i] + c;
+            }
+            let (mut bv, mut bt, mut bi) = (f64::INFINITY, 0.0f64, 0usize);
+            for (k, (&v, &t)) in cv.iter().zip(ct.iter()).enumerate() {
+                if v < bv || (v == bv && t < bt) {
+                    (bv, bt, bi) = (v, t, lo + k);
                 }
             }
+            (value[j], total[j], from[j]) = (bv, bt, bi);
         }
         let mut path = vec![n - 1];
         let mut k = n - 1;
@@ -301,7 +335,7 @@ impl<F: Fn(usize, usize) -> f64> CostMatrix<F> {
             path.push(k);
         }
         path.reverse();
-        (path, best[n - 1].1)
+        (path, total[n - 1])
     }
 
     /// The fewest-segment path found whose total cost is at most `tol`.

@@ -22,11 +22,12 @@ pub struct EnvSamplerArgs {
     pub tolerance: Option<f64>,
     /// The oriented sampler's cells of normals, ROWSxCOLUMNS (equal area:
     /// rows in cos θ, columns in φ).
-    #[arg(long, value_name = "RxC", default_value = "8x16")]
+    #[arg(long, value_name = "RxC", default_value = "16x32")]
     pub normal_cells: String,
     /// The oriented sampler's defensive share: the probability of drawing
-    /// from the plain luminance table whatever the normal, in (0, 1].
-    #[arg(long, value_name = "A", default_value_t = 0.05)]
+    /// from the plain luminance table whatever the normal, in [0, 1] (each
+    /// normal's own table already covers every texel it sees).
+    #[arg(long, value_name = "A", default_value_t = acdf::env_registry::DEFAULT_DEFENSIVE)]
     pub defensive: f32,
     /// Replace NaN, infinite and negative texels by 0 (with a warning on
     /// stderr) instead of rejecting the map.
@@ -52,11 +53,11 @@ impl EnvSamplerArgs {
     /// Every grid of `--normal-cells` (a comma-separated list of RxC).
     pub fn grids(&self) -> Result<Vec<NormalGrid>> {
         crate::common::validate_tolerance(self.tolerance)?;
-        if !(self.defensive > 0.0 && self.defensive <= 1.0) {
+        if !(0.0..=1.0).contains(&self.defensive) {
             return Err(Error::InvalidArgument {
                 what: "defensive share",
                 value: self.defensive.to_string(),
-                reason: "must be in (0, 1]".into(),
+                reason: "must be in [0, 1]".into(),
             });
         }
         crate::common::parse_list(
