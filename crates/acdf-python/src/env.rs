@@ -244,10 +244,10 @@ impl EnvSampler {
     ///
     /// `tolerance` is the simplifier's, for the adaptive and oriented
     /// samplers (default: the simplifier's own; 0.005 for chi2).
-    /// `normal_cells` (`"8x16"` or `(8, 16)`, the default) and
+    /// `normal_cells` (`"16x32"` or `(16, 32)`, the default) and
     /// `defensive` (the probability of drawing from the plain luminance
-    /// table, in (0, 1], default 0.05) are the oriented sampler's; its
-    /// tables are built on first use, per cell of normals. The others are
+    /// table, in [0, 1], default 0) are the oriented sampler's; its
+    /// tables are built on first use, per region of normals. The others are
     /// built now, with the interpreter released; Ctrl-C interrupts the
     /// build.
     #[new]
@@ -263,11 +263,11 @@ impl EnvSampler {
         check_tolerance(py, tolerance)?;
         let defaults = EnvSamplerOptions::default();
         let defensive = defensive.unwrap_or(defaults.defensive);
-        if !(defensive > 0.0 && defensive <= 1.0) {
+        if !(0.0..=1.0).contains(&defensive) {
             return Err(raise(
                 py,
                 "InvalidArgumentError",
-                format!("invalid defensive share `{defensive}`: must be in (0, 1]"),
+                format!("invalid defensive share `{defensive}`: must be in [0, 1]"),
             ));
         }
         let options = EnvSamplerOptions {

@@ -86,7 +86,7 @@ def test_env_errors_name_their_cause(tmp_path: Path, envmap: acdf.EnvMap) -> Non
     with pytest.raises(acdf.UnknownNameError) as e:
         acdf.EnvSampler(envmap, "nope")
     assert all(n in str(e.value) for n in FAMILIES)
-    for kwargs in [{"defensive": 0.0}, {"defensive": 1.5}, {"normal_cells": "0x4"},
+    for kwargs in [{"defensive": -0.1}, {"defensive": 1.5}, {"defensive": float("nan")}, {"normal_cells": "0x4"},
                    {"normal_cells": "8by16"}, {"normal_cells": (8,)}, {"tolerance": -1.0}]:
         with pytest.raises(acdf.InvalidArgumentError):
             acdf.EnvSampler(envmap, "oriented", **kwargs)

@@ -167,9 +167,9 @@ class EnvSampler:
         """Build the sampler `name` (one of `ENV_SAMPLER_NAMES`) for `envmap`.
 
         `tolerance`: the simplifier's (default: its own; 0.005 for chi2).
-        `normal_cells` (`"8x16"` default) and `defensive` (in (0, 1],
-        default 0.05): the oriented sampler's, whose tables are built on
-        first use per cell of normals. Ctrl-C interrupts the build."""
+        `normal_cells` (`"16x32"` default) and `defensive` (in [0, 1],
+        default 0): the oriented sampler's, whose tables are built on
+        first use per region of normals. Ctrl-C interrupts the build."""
     @property
     def name(self) -> str:
         """The sampler's name, e.g. `adaptive:chi2`."""
