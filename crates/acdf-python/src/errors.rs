@@ -78,10 +78,12 @@ pub fn to_py(py: Python<'_>, e: Error) -> PyErr {
         } if missing(source) => return not_found(py, path, message),
         Error::UnknownSamplerKind { .. } | Error::SamplerFile { .. } => "SamplerFileError",
         Error::TargetNotReached { .. } => "TargetNotReachedError",
-        Error::Env(EnvError::Io { path, source }) if missing(source) => {
+        Error::Env(EnvError::File(acdf_core::fsio::FsError::Read { path, source }))
+            if missing(source) =>
+        {
             return not_found(py, path, message)
         }
-        Error::Env(EnvError::Io { .. }) => "IoError",
+        Error::Env(EnvError::File(acdf_core::fsio::FsError::Read { .. })) => "IoError",
         Error::Env(EnvError::Core(_)) => "InvalidArgumentError",
         Error::Env(_) => "EnvMapError",
         Error::Io { .. } | Error::Stream(_) => "IoError",
