@@ -66,7 +66,7 @@ use std::sync::Arc;
 /// (the command of the README's section on this sampler): up to about 5
 /// times its default tolerance the simplifier barely moves the relative
 /// variance, while the θ_o budget moves it most, so the storage goes to
-/// θ_o breakpoints (12 to 14 kept slices of about 1.1 KiB each on those
+/// θ_o breakpoints (12 to 14 kept slices of about 1 KiB each on those
 /// materials).
 pub const DEFAULT_BUDGET: f64 = 0.003;
 
