@@ -63,13 +63,11 @@ use std::sync::Arc;
 ///
 /// With [`TOLERANCE_SCALE`] it was chosen by `acdf report` on
 /// `nbrdf:nickel`, `nbrdf:blue-metallic-paint` and `nbrdf:gray-plastic`
-/// (the command of the README's section on this sampler): the simplifier
-/// barely moves the variance up to about 5 times its default tolerance,
-/// while the θ_o budget moves it most, so the storage goes to θ_o
-/// breakpoints. A budget of 0.02 at the simplifier's default keeps 7
-/// slices of about 4 KiB with relative variances 4.8e-2 to 8.5e-2;
-/// 0.003 at 5 times the default keeps 12 to 14 slices of about 1.2 KiB
-/// with 3.6e-2 to 4.5e-2.
+/// (the command of the README's section on this sampler): up to about 5
+/// times its default tolerance the simplifier barely moves the relative
+/// variance, while the θ_o budget moves it most, so the storage goes to
+/// θ_o breakpoints (12 to 14 kept slices of about 1 KiB each on those
+/// materials).
 pub const DEFAULT_BUDGET: f64 = 0.003;
 
 /// The default tolerance of an outgoing sampler over its simplifier's
