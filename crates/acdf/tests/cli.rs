@@ -623,11 +623,12 @@ fn survey_writes_csv_json_figures_and_a_summary() {
     ]);
     assert_ok(&o);
     let out = stdout(&o);
-    assert!(out.contains("2 materials x 12 samplers in"), "{out}");
+    assert!(out.contains("2 materials x 13 samplers in"), "{out}");
     for sampler in [
         "uniform@32x16x256x32",
         "adaptive:chi2@target",
         "adaptive:opheim",
+        "outgoing:chi2",
         "cosine",
     ] {
         assert!(
@@ -637,10 +638,10 @@ fn survey_writes_csv_json_figures_and_a_summary() {
     }
     assert!(!out.contains("NaN") && !out.contains("inf"), "{out}");
     let csv = std::fs::read_to_string(dir.path().join("survey.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 2 * 12);
+    assert_eq!(csv.lines().count(), 1 + 2 * 13);
     let json = read_json(&dir.path().join("survey.json"));
-    assert_eq!(json["rows"].as_array().unwrap().len(), 24);
-    assert_eq!(json["summary"].as_array().unwrap().len(), 12);
+    assert_eq!(json["rows"].as_array().unwrap().len(), 26);
+    assert_eq!(json["summary"].as_array().unwrap().len(), 13);
     for row in json["rows"].as_array().unwrap() {
         if row["sampler"] == "uniform@32x16x256x32" {
             assert_eq!(row["compression"].as_f64(), Some(1.0));
@@ -688,14 +689,17 @@ fn sweep_writes_csv_json_svg_and_png() {
         .unwrap()
         .starts_with("material,sampler,tolerance,resolution,is_reference"));
     let rows: Vec<&str> = lines.collect();
-    assert_eq!(rows.len(), 2 + 2 * 2);
+    // uniform and cosine, then each simplifier at each tolerance as
+    // adaptive:S and (the material being isotropic) outgoing:S.
+    assert_eq!(rows.len(), 2 + 2 * 2 * 2);
+    assert!(rows.iter().any(|r| r.starts_with("nickel,outgoing:dp,")));
     assert!(rows[0].starts_with("nickel,uniform,"));
     assert!(rows[1].starts_with("nickel,cosine,"));
     let csv = std::fs::read_to_string(dir.path().join("sweep-nickel.csv")).unwrap();
     assert_eq!(csv, out);
     let json = read_json(&dir.path().join("sweep-nickel.json"));
     let points = json.as_array().unwrap();
-    assert_eq!(points.len(), 6);
+    assert_eq!(points.len(), 10);
     // A looser tolerance keeps fewer vertices, so it stores less.
     let dp: Vec<u64> = points
         .iter()
