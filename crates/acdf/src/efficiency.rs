@@ -48,10 +48,10 @@
 //! thread sharing the core), so many short repeats and their minimum
 //! measure the sampler's own cost more repeatably than a median of long
 //! ones: on the report's three measured materials, under a load average of
-//! 5 to 10 on 2 cores, two runs of `acdf report` gave relative
-//! efficiencies 2.4% apart at the median row with the minimum of 45
-//! repeats of 512 draws per direction, and 6.9% with the median of 9
-//! repeats of 4096. Several samplers are timed in turns (one repeat of each
+//! 9 to 10 on 2 cores, two runs of `acdf report` gave relative
+//! efficiencies 1.1% apart at the median row (5.6% at most) with the
+//! minimum of 45 repeats of 512 draws per direction, and 6.9% (17%) with
+//! the median of 9 repeats of 4096. Several samplers are timed in turns (one repeat of each
 //! per round, [`time_samplers`]), so that each sees the machine in the same
 //! states. The BRDF evaluation at the
 //! drawn directions, the same work whichever sampler drew them, is timed in
