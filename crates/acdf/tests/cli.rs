@@ -1105,8 +1105,11 @@ fn bench_prints_a_table_and_writes_documented_json() {
             ("adaptive:dp", "32x1x256x32"),
             ("uniform", "32x16x256x32"),
             ("adaptive:chi2", "32x1x256x32"),
+            ("outgoing:chi2", rows[4].1),
         ]
     );
+    // Kept slices over the 128 fine θ_o slices, then the mean vertices.
+    assert!(rows[4].1.contains("/128x1x"), "{}", rows[4].1);
     // The seed's configuration stores over 30 times what the recommended
     // one does.
     let bytes = |k: usize| samplers[k]["storage_bytes"].as_u64().unwrap();

@@ -20,8 +20,9 @@
 //! - **BRDF samplers** (`uniform`, `adaptive`) on the material at
 //!   the isotropic resolution, then the seed's configuration (`uniform` at
 //!   the paper's 32x16x256x32, 17 MB on nickel) and the recommended one
-//!   (`adaptive:chi2` at the isotropic resolution, a few hundred KB), all
-//!   slices built beforehand, on one thread:
+//!   (`adaptive:chi2` at the isotropic resolution, a few hundred KB), and
+//!   for an isotropic material the adaptive-outgoing `outgoing:chi2` (at
+//!   most 17.6 KB), all slices built beforehand, on one thread:
 //!   `sample` called once per draw with the outgoing direction changing
 //!   every draw (a path tracer's case, cycling through 64 directions);
 //!   `sample_each` over the same (wo, u) pairs (a wavefront renderer's
@@ -52,7 +53,7 @@ use serde::Serialize;
 
 use acdf::error::{Error, Result};
 use acdf::material::load_material;
-use acdf::registry::effective_resolution;
+use acdf::registry::{effective_resolution, make_sampler, SamplerOps, SamplerOptions};
 use acdf::spec::MaterialSpec;
 
 /// What `acdf bench` runs.
@@ -127,8 +128,9 @@ pub struct BenchReport {
     /// The 2D distributions of one slice (256 θ_h × 32 φ_h).
     pub distributions: Vec<DistributionBench>,
     /// The BRDF samplers: `uniform` and `adaptive:dp` at the isotropic
-    /// resolution 32x1x256x32, then `uniform` at the paper's 32x16x256x32
-    /// and `adaptive:chi2` at 32x1x256x32.
+    /// resolution 32x1x256x32, then `uniform` at the paper's 32x16x256x32,
+    /// `adaptive:chi2` at 32x1x256x32 and, for an isotropic material,
+    /// `outgoing:chi2`.
     pub samplers: Vec<SamplerBench>,
     /// The full 4D builds from a MERL-layout table.
     pub builds: Vec<BuildBench>,
@@ -326,8 +328,9 @@ fn outgoing_directions(count: usize) -> Vec<Vec3> {
 
 /// Time `sample`, `sample_each`, `sample_batch`, `pdf`, `pdf_each` and
 /// `pdf_batch` of a built sampler on one thread.
-fn bench_sampler<B: SliceBuilder>(
-    sampler: &TabulatedBrdfSampler<B>,
+fn bench_sampler<S: BxdfSampler + ?Sized>(
+    sampler: &S,
+    resolution: String,
     u: &[Vec2],
     repeats: usize,
 ) -> SamplerBench {
@@ -392,7 +395,7 @@ fn bench_sampler<B: SliceBuilder>(
     });
     SamplerBench {
         name: sampler.name().to_string(),
-        resolution: sampler.resolution().to_string(),
+        resolution,
         sample_per_second: n / per_call,
         sample_each_per_second: n / each,
         sample_batch_per_second: n / batch,
@@ -479,8 +482,8 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     adaptive.build_all()?;
     let clock_ghz_start = clock_ghz();
     let mut samplers = vec![
-        bench_sampler(&uniform, &u, repeats),
-        bench_sampler(&adaptive, &u, repeats),
+        bench_sampler(&uniform, uniform.resolution().to_string(), &u, repeats),
+        bench_sampler(&adaptive, adaptive.resolution().to_string(), &u, repeats),
     ];
     drop((uniform, adaptive));
     // Then the seed's configuration against the one this project
@@ -491,13 +494,29 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
         PiecewiseConstantBuilder,
     )?;
     seed.build_all()?;
-    samplers.push(bench_sampler(&seed, &u, repeats));
+    samplers.push(bench_sampler(
+        &seed,
+        seed.resolution().to_string(),
+        &u,
+        repeats,
+    ));
     drop(seed);
     let chi2 =
         TabulatedBrdfSampler::new(brdf.clone(), res, AdaptiveBuilder::by_name("chi2", None)?)?;
     chi2.build_all()?;
-    samplers.push(bench_sampler(&chi2, &u, repeats));
+    samplers.push(bench_sampler(
+        &chi2,
+        chi2.resolution().to_string(),
+        &u,
+        repeats,
+    ));
     drop(chi2);
+    if material.brdf.is_isotropic() {
+        let outgoing = make_sampler("outgoing:chi2", &material, &SamplerOptions::default())?;
+        outgoing.build_all()?;
+        let resolution = outgoing.resolution_label();
+        samplers.push(bench_sampler(&outgoing, resolution, &u, repeats));
+    }
     let clock_ghz_end = clock_ghz();
 
     // (d): the full 4D builds from a MERL-layout table.
@@ -567,12 +586,12 @@ pub fn format_bench(report: &BenchReport) -> String {
         ));
     }
     s.push_str(&format!(
-        "{:<14} {:>12} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}   (M/s, one thread)\n",
+        "{:<14} {:>17} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}   (M/s, one thread)\n",
         "sampler", "resolution", "sample", "each", "batch", "pdf", "pdf each", "pdf batch"
     ));
     for b in &report.samplers {
         s.push_str(&format!(
-            "{:<14} {:>12} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2}   {} bytes\n",
+            "{:<14} {:>17} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>9.2}   {} bytes\n",
             b.name,
             b.resolution,
             b.sample_per_second / 1e6,
@@ -593,7 +612,7 @@ pub fn format_bench(report: &BenchReport) -> String {
         ));
         for b in &report.samplers {
             s.push_str(&format!(
-                "{:<14} {:>12} {:>9.0} {:>9.0}   (sample, pdf)\n",
+                "{:<14} {:>17} {:>9.0} {:>9.0}   (sample, pdf)\n",
                 b.name,
                 b.resolution,
                 hz / b.sample_per_second,
