@@ -7,7 +7,7 @@ use acdf::registry::report_samplers;
 use acdf::report::{report_material, ReportPlan};
 use acdf::spec::SamplerAt;
 use acdf::spec::DEFAULT_REPORT_MATERIALS;
-use acdf::sweep::{default_tolerance, run_sweep, SweepPlan, TOLERANCE_FACTORS};
+use acdf::sweep::{run_sweep, sweep_tolerances, SweepPlan};
 use acdf::{EfficiencyConfig, SamplerOptions, SamplerSpec, SimplifierName};
 use pyo3::prelude::*;
 
@@ -239,13 +239,7 @@ pub fn sweep<'py>(
         check_tolerance(py, Some(t))?;
     }
     let points = cancellable(py, move |checkpoint| {
-        let tolerances = |s: SimplifierName| match &tolerances {
-            Some(t) => Ok(t.clone()),
-            None => {
-                let d = default_tolerance(s);
-                Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
-            }
-        };
+        let tolerances = |s: SimplifierName| Ok(sweep_tolerances(tolerances.as_deref(), s));
         let plan = SweepPlan {
             simplifiers: &simplifiers,
             tolerances: &tolerances,

@@ -30,6 +30,8 @@ pub mod slice;
 pub mod tabulate;
 
 pub use resolution::Resolution;
-pub use sampler::{check_cosine_fraction, half_vector_cell, outgoing_cell, TabulatedBrdfSampler};
+pub use sampler::{
+    check_cosine_fraction, half_vector_cell, mix_with_cosine, outgoing_cell, TabulatedBrdfSampler,
+};
 pub use slice::{SliceBuilder, SliceDistribution};
 pub use tabulate::{tabulate_for, tabulate_slice};

@@ -469,23 +469,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
     }
 
-    /// (1 - a) table + a cos θ_i / π, 0 if not finite: the mixing of
-    /// [`mixed_pdf`](Self::mixed_pdf) for a known table density.
+    /// The mixing of [`mixed_pdf`](Self::mixed_pdf) for a known table
+    /// density ([`mix_with_cosine`]).
     #[inline(always)]
     fn mix_with_cosine(&self, table: f32, wi: Vec3) -> f32 {
-        let a = self.cosine_fraction;
-        // Without a cosine lobe the table density is the density, with no
-        // multiply and add on the chain of every draw.
-        let p = if a > 0.0 {
-            (1.0 - a) * table + a * cosine_hemisphere_pdf(wi)
-        } else {
-            table
-        };
-        if p.is_finite() {
-            p
-        } else {
-            0.0
-        }
+        mix_with_cosine(self.cosine_fraction, table, wi)
     }
 
     /// The mixed density for a valid wo; 0 for a non-finite wi or one at or
@@ -592,6 +580,24 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         wi_z: f32,
     ) -> f32 {
         self.pdf_one(Vec3::new(wo_x, wo_y, wo_z), Vec3::new(wi_x, wi_y, wi_z))
+    }
+}
+
+/// The density of a sampler that draws from a cosine lobe with
+/// probability `a` and from its tables otherwise: (1 - a) table +
+/// a cos θ_i / π, 0 if not finite. Without a cosine lobe the table density
+/// is the density, with no multiply and add on the chain of every draw.
+#[inline(always)]
+pub fn mix_with_cosine(a: f32, table: f32, wi: Vec3) -> f32 {
+    let p = if a > 0.0 {
+        (1.0 - a) * table + a * cosine_hemisphere_pdf(wi)
+    } else {
+        table
+    };
+    if p.is_finite() {
+        p
+    } else {
+        0.0
     }
 }
 

@@ -37,6 +37,18 @@ pub const TOLERANCE_FACTORS: [f64; 8] = [
     8.0,
 ];
 
+/// The tolerances a sweep tries for `simplifier`: `fixed` when given, else
+/// [`TOLERANCE_FACTORS`] times the simplifier's default.
+pub fn sweep_tolerances(fixed: Option<&[f64]>, simplifier: SimplifierName) -> Vec<f64> {
+    match fixed {
+        Some(t) => t.to_vec(),
+        None => {
+            let d = default_tolerance(simplifier);
+            TOLERANCE_FACTORS.iter().map(|f| f * d).collect()
+        }
+    }
+}
+
 /// The default tolerance of a simplifier, as its plug-in defines it.
 pub fn default_tolerance(simplifier: SimplifierName) -> f64 {
     (simplifier.entry().make)().default_tolerance()

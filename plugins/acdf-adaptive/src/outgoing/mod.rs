@@ -47,7 +47,7 @@ use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
 use crate::AdaptiveCdf2D;
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
 use acdf_core::geometry::sin_theta;
-use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
+use acdf_core::warp::square_to_cosine_hemisphere;
 use acdf_core::{
     clamp_unit, is_valid_outgoing, Brdf, BxdfSample, BxdfSampler, Error, Result, Vec2, Vec3,
     ONE_MINUS_EPSILON,
@@ -557,8 +557,7 @@ impl OutgoingSampler {
             return None;
         }
         let pdf = match table {
-            Some(table) if a > 0.0 => (1.0 - a) * table + a * cosine_hemisphere_pdf(wi),
-            Some(table) => table,
+            Some(table) => acdf_tabulated::mix_with_cosine(a, table, wi),
             None => self.pdf_one(wo, wi),
         };
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
@@ -572,16 +571,7 @@ impl OutgoingSampler {
         }
         let a = self.cosine_fraction;
         let table = if a < 1.0 { self.table_pdf(wo, wi) } else { 0.0 };
-        let p = if a > 0.0 {
-            (1.0 - a) * table + a * cosine_hemisphere_pdf(wi)
-        } else {
-            table
-        };
-        if p.is_finite() {
-            p
-        } else {
-            0.0
-        }
+        acdf_tabulated::mix_with_cosine(a, table, wi)
     }
 
     /// [`sample_one`](Self::sample_one) compiled for AVX2 (the same IEEE

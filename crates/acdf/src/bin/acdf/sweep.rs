@@ -8,7 +8,7 @@ use acdf::env::Sky;
 use acdf::error::Result;
 use acdf::spec::SimplifierName;
 use acdf::sweep::{
-    default_tolerance, plot_sweep, run_sweep, write_csv, SweepPlan, SweepPoint, TOLERANCE_FACTORS,
+    plot_sweep, run_sweep, sweep_tolerances, write_csv, SweepPlan, SweepPoint, TOLERANCE_FACTORS,
 };
 
 use crate::common::{
@@ -117,15 +117,8 @@ pub fn run(a: Args) -> Result<()> {
     let total = 3 + simplifiers.len() * per_simplifier + 2;
     eprintln!("{}", measure.describe(&config));
     eprintln!("reference {reference}");
-    let tolerances = |s: SimplifierName| -> Result<Vec<f64>> {
-        match &fixed {
-            Some(t) => Ok(t.clone()),
-            None => {
-                let d = default_tolerance(s);
-                Ok(TOLERANCE_FACTORS.iter().map(|f| f * d).collect())
-            }
-        }
-    };
+    let tolerances =
+        |s: SimplifierName| -> Result<Vec<f64>> { Ok(sweep_tolerances(fixed.as_deref(), s)) };
     let plan = SweepPlan {
         simplifiers: &simplifiers,
         tolerances: &tolerances,
