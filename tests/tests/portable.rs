@@ -5,7 +5,7 @@
 //! portable path forced and once on the detected one, and every output is
 //! compared by `to_bits()`: the distributions' `sample_batch`, `pdf_batch`
 //! and `SliceDistribution` batch forms, the tabulated samplers' `sample`,
-//! `pdf` and batch forms, the searches of `acdf_core::search` and the
+//! `pdf` and batch forms, the outgoing sampler's, the searches of `acdf_core::search` and the
 //! many-angle sines and cosines. The inputs hold random numbers and the
 //! edges (u = 0, -0, next to 1, 1, NaN, out of range), tables with zero
 //! rows, and tables of odd sizes that fill no lane evenly.
@@ -496,6 +496,22 @@ fn tabulated_samplers_on_nickel() {
         );
     }
     println!("tabulated samplers: {compared} outputs compared");
+}
+
+/// The outgoing sampler (its AVX2 copies of `sample`, `pdf` and the batch
+/// forms against the portable ones), plain and with a cosine mix.
+#[test]
+fn outgoing_sampler_on_nickel() {
+    let paths = lock();
+    let mut rng = Pcg64::seed_from_u64(5);
+    let nickel = acdf_materials::builtin("nickel").expect("built-in nickel");
+    let builder = acdf_adaptive::OutgoingBuilder::by_name("chi2", None, 64).unwrap();
+    let resolution = Resolution::new(16, 1, 64, 16).unwrap();
+    let plain = acdf_adaptive::OutgoingSampler::new(nickel, resolution, builder).unwrap();
+    let mut compared = compare_sampler(&paths, "outgoing:chi2", &plain, &mut rng);
+    let mixed = plain.with_cosine_mix(0.1).unwrap();
+    compared += compare_sampler(&paths, "outgoing:chi2+cosine", &mixed, &mut rng);
+    println!("outgoing sampler: {compared} outputs compared");
 }
 
 #[test]

@@ -156,6 +156,8 @@ pub struct OutgoingSampler {
     name: String,
     n_theta_h: usize,
     n_phi_h: usize,
+    /// (n_phi_h, n_theta_h) as floats, as the slices take them.
+    cells: (f32, f32),
     map: HalfMap,
     /// u_o of each kept slice: 0 first, 1 last, increasing.
     breakpoints: Vec<f32>,
@@ -349,6 +351,7 @@ impl OutgoingSampler {
             builder,
             n_theta_h,
             n_phi_h,
+            cells: (n_phi_h as f32, n_theta_h as f32),
             map: HalfMap::new(n_theta_h),
             breakpoints,
             slices,
@@ -413,36 +416,39 @@ impl OutgoingSampler {
         (marginal as f64 / n, vertices as f64 / stored.max(1) as f64)
     }
 
-    /// The two slices of wo and the weight of the second: (k, t) with
-    /// breakpoint k at or below u_o.
+    /// What the draws and densities of a valid wo share: its two slices and
+    /// the weight of the second, (k, t) with breakpoint k at or below u_o,
+    /// and the rotation (cos φ_o, sin φ_o) (φ_o = 0 on the pole). The batch
+    /// forms compute it once for all their draws.
     #[inline(always)]
-    fn blend_of(&self, wo: Vec3) -> (usize, f32) {
-        let theta = fast_atan2(sin_theta(wo), wo.z).max(0.0);
-        let u = (theta / FRAC_PI_2).sqrt().min(1.0);
-        let b = &self.breakpoints;
-        let last = b.len() - 1;
-        if last == 0 {
-            return (0, 0.0);
-        }
-        let k = b[1..last].iter().filter(|&&x| x <= u).count();
-        let t = ((u - b[k]) / (b[k + 1] - b[k])).clamp(0.0, 1.0);
-        (k, t)
-    }
-
-    /// (cos φ_o, sin φ_o) of a valid wo; φ_o = 0 on the pole.
-    #[inline(always)]
-    fn rotation(wo: Vec3) -> Vec2 {
+    fn outgoing(&self, wo: Vec3) -> Outgoing {
         let s = sin_theta(wo);
-        if s > 0.0 {
+        let rotation = if s > 0.0 {
             Vec2::new(wo.x, wo.y) / s
         } else {
             Vec2::X
+        };
+        let b = &self.breakpoints;
+        let last = b.len() - 1;
+        if last == 0 {
+            return Outgoing {
+                k: 0,
+                t: 0.0,
+                rotation,
+            };
         }
+        let theta = fast_atan2(s, wo.z).max(0.0);
+        let u = (theta / FRAC_PI_2).sqrt().min(1.0);
+        // A count with no data-dependent branch (the compiler compares
+        // eight breakpoints at a time).
+        let k = b[1..last].iter().map(|&x| (x <= u) as usize).sum::<usize>();
+        let t = ((u - b[k]) / (b[k + 1] - b[k])).clamp(0.0, 1.0);
+        Outgoing { k, t, rotation }
     }
 
     /// The blended table density at wi for a valid wo, per solid angle.
     #[inline(always)]
-    fn table_pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn table_pdf(&self, o: &Outgoing, wo: Vec3, wi: Vec3) -> f32 {
         let sum = wi + wo;
         let length_squared = sum.length_squared();
         if !(length_squared > 1e-20 && length_squared.is_finite()) {
@@ -456,15 +462,15 @@ impl OutgoingSampler {
             return 0.0;
         }
         let v = self.map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
-        let r = Self::rotation(wo);
+        let r = o.rotation;
         let (hx, hy) = (r.x * sum.x + r.y * sum.y, r.x * sum.y - r.y * sum.x);
         let mut phi = fast_atan2(hy, hx);
         if phi < 0.0 {
             phi += TAU;
         }
         let x = (phi / TAU).clamp(0.0, ONE_MINUS_EPSILON);
-        let (k, t) = self.blend_of(wo);
-        let (nx, ny) = (self.n_phi_h as f32, self.n_theta_h as f32);
+        let (k, t) = (o.k, o.t);
+        let (nx, ny) = self.cells;
         let mut p = 0.0;
         if t < 1.0 {
             p += (1.0 - t) * self.slices[k].pdf(x, v, nx, ny);
@@ -474,7 +480,7 @@ impl OutgoingSampler {
         }
         let denominator = self.map.jacobian(v, sin_h) * 4.0 * wo_h;
         let p = p / denominator;
-        if p.is_finite() && p > 0.0 {
+        if is_positive_finite(p) {
             p
         } else {
             0.0
@@ -485,15 +491,15 @@ impl OutgoingSampler {
     /// drawn point certainly has the density `pdf` would find for wi (see
     /// [`CELL_MARGIN`]), `None` when it must be recomputed.
     #[inline(always)]
-    fn sample_table(&self, wo: Vec3, u: Vec2) -> (Vec3, Option<f32>) {
-        let (k, t) = self.blend_of(wo);
+    fn sample_table(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> (Vec3, Option<f32>) {
+        let (k, t) = (o.k, o.t);
         // Slice k with probability 1 - t, slice k + 1 with t.
         let (drawn, other, ux, w_drawn) = if u.x < 1.0 - t {
             (k, k + 1, u.x / (1.0 - t), 1.0 - t)
         } else {
             (k + 1, k, (u.x - (1.0 - t)) / t, t)
         };
-        let n = (self.n_phi_h as f32, self.n_theta_h as f32);
+        let n = self.cells;
         let d = self.slices[drawn].sample(clamp_unit(ux), u.y, n, CELL_MARGIN);
         let (x, v) = d.p;
         let mut p_xv = w_drawn * d.pdf;
@@ -506,7 +512,7 @@ impl OutgoingSampler {
         }
         let (sin_h, cos_h) = self.map.angles(v);
         let (sin_p, cos_p) = sin_cos_turns(x);
-        let r = Self::rotation(wo);
+        let r = o.rotation;
         let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
         let h = Vec3::new(
             r.x * local.x - r.y * local.y,
@@ -517,9 +523,27 @@ impl OutgoingSampler {
         let wi = (2.0 * wo_h * h - wo).normalize_or_zero();
         let geometry = (wo_h >= 0.125) & (wo_h * sin_h >= 1.0 / 512.0) & (v >= self.map.cap_top());
         let table = p_xv / (self.map.jacobian(v, sin_h) * 4.0 * wo_h);
-        let shortcut = same & geometry & table.is_finite() & (table > 0.0);
+        let shortcut = same & geometry & is_positive_finite(table);
         (wi, shortcut.then_some(table))
     }
+}
+
+/// What the draws and densities of one outgoing direction share
+/// ([`OutgoingSampler::outgoing`]).
+#[derive(Debug, Clone, Copy)]
+struct Outgoing {
+    k: usize,
+    t: f32,
+    rotation: Vec2,
+}
+
+/// Whether `v` is positive (not zero) and finite: its bit pattern, less
+/// one, is below that of the largest finite `f32` (zero wraps around;
+/// negative values, infinity and NaN are above). Three integer
+/// instructions where `v > 0.0 && v.is_finite()` compiles to a dozen.
+#[inline(always)]
+fn is_positive_finite(v: f32) -> bool {
+    v.to_bits().wrapping_sub(1) < f32::MAX.to_bits()
 }
 
 /// The half-widths (x, v), in unit coordinates, of the box around a draw
@@ -532,14 +556,20 @@ impl OutgoingSampler {
 const CELL_MARGIN: (f32, f32) = (1.0 / 32768.0, 1.0 / 65536.0);
 
 impl OutgoingSampler {
-    /// [`BxdfSampler::sample`] itself: with probability a a cosine draw,
-    /// otherwise a table draw from the slice picked by the blend weights;
-    /// the density is `pdf` of the returned wi.
+    /// [`BxdfSampler::sample`] itself.
     #[inline(always)]
     fn sample_one(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
         if !is_valid_outgoing(wo) {
             return None;
         }
+        self.sample_in(&self.outgoing(wo), wo, u)
+    }
+
+    /// With probability a a cosine draw, otherwise a table draw from the
+    /// slice picked by the blend weights; the density is `pdf` of the
+    /// returned wi. `wo` must be valid and `o` its [`Outgoing`].
+    #[inline(always)]
+    fn sample_in(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
         let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
         let a = self.cosine_fraction;
         let (wi, table) = if u.x < a {
@@ -551,14 +581,14 @@ impl OutgoingSampler {
             } else {
                 u.x
             };
-            self.sample_table(wo, Vec2::new(ux, u.y))
+            self.sample_table(o, wo, Vec2::new(ux, u.y))
         };
         if !(wi.z > 0.0) {
             return None;
         }
         let pdf = match table {
             Some(table) => acdf_tabulated::mix_with_cosine(a, table, wi),
-            None => self.pdf_one(wo, wi),
+            None => self.pdf_in(o, wo, wi),
         };
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
     }
@@ -566,16 +596,57 @@ impl OutgoingSampler {
     /// [`BxdfSampler::pdf`] itself.
     #[inline(always)]
     fn pdf_one(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if !is_valid_outgoing(wo) || !wi.is_finite() || !(wi.z > 0.0) {
+        if !is_valid_outgoing(wo) {
+            return 0.0;
+        }
+        self.pdf_in(&self.outgoing(wo), wo, wi)
+    }
+
+    /// The density at wi for a valid wo whose [`Outgoing`] is `o`.
+    #[inline(always)]
+    fn pdf_in(&self, o: &Outgoing, wo: Vec3, wi: Vec3) -> f32 {
+        if !wi.is_finite() || !(wi.z > 0.0) {
             return 0.0;
         }
         let a = self.cosine_fraction;
-        let table = if a < 1.0 { self.table_pdf(wo, wi) } else { 0.0 };
+        let table = if a < 1.0 {
+            self.table_pdf(o, wo, wi)
+        } else {
+            0.0
+        };
         acdf_tabulated::mix_with_cosine(a, table, wi)
     }
 
+    /// [`BxdfSampler::sample_batch`] itself: what the draws share of wo
+    /// found once.
+    #[inline(always)]
+    fn sample_batch_one(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        if !is_valid_outgoing(wo) {
+            out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
+            return;
+        }
+        let o = self.outgoing(wo);
+        for (out, &u) in out.iter_mut().zip(u) {
+            *out = self.sample_in(&o, wo, u);
+        }
+    }
+
+    /// [`BxdfSampler::pdf_batch`] itself, as
+    /// [`sample_batch_one`](Self::sample_batch_one).
+    #[inline(always)]
+    fn pdf_batch_one(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        if !is_valid_outgoing(wo) {
+            out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
+            return;
+        }
+        let o = self.outgoing(wo);
+        for (out, &wi) in out.iter_mut().zip(wi) {
+            *out = self.pdf_in(&o, wo, wi);
+        }
+    }
+
     /// [`sample_one`](Self::sample_one) compiled for AVX2 (the same IEEE
-    /// operations; the vertex counts run sixteen at a time).
+    /// operations; the compiler may use wider vectors for the counts).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn sample_avx2(&self, _: acdf_core::cpu::Avx2, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
@@ -587,6 +658,26 @@ impl OutgoingSampler {
     #[target_feature(enable = "avx2,fma")]
     fn pdf_avx2(&self, _: acdf_core::cpu::Avx2, wo: Vec3, wi: Vec3) -> f32 {
         self.pdf_one(wo, wi)
+    }
+
+    /// [`sample_batch_one`](Self::sample_batch_one) compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn sample_batch_avx2(
+        &self,
+        _: acdf_core::cpu::Avx2,
+        wo: Vec3,
+        u: &[Vec2],
+        out: &mut [Option<BxdfSample>],
+    ) {
+        self.sample_batch_one(wo, u, out)
+    }
+
+    /// [`pdf_batch_one`](Self::pdf_batch_one) compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn pdf_batch_avx2(&self, _: acdf_core::cpu::Avx2, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        self.pdf_batch_one(wo, wi, out)
     }
 }
 
@@ -617,6 +708,26 @@ impl BxdfSampler for OutgoingSampler {
             return unsafe { self.pdf_avx2(cpu, wo, wi) };
         }
         self.pdf_one(wo, wi)
+    }
+
+    /// `sample` for every u, with the blend and rotation of wo found once.
+    fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: as for `sample`.
+            return unsafe { self.sample_batch_avx2(cpu, wo, u, out) };
+        }
+        self.sample_batch_one(wo, u, out)
+    }
+
+    /// `pdf` for every wi, with the blend and rotation of wo found once.
+    fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: as for `sample`.
+            return unsafe { self.pdf_batch_avx2(cpu, wo, wi, out) };
+        }
+        self.pdf_batch_one(wo, wi, out)
     }
 
     /// The breakpoints (4 bytes each) and every slice's stored arrays.

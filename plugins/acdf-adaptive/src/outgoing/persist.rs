@@ -82,11 +82,11 @@ impl OutgoingSampler {
         w.f32(self.cosine_fraction);
         w.f32_array(&self.breakpoints);
         for s in &self.slices {
-            write_u16s(&mut w, &s.marginal_pos);
-            write_u16s(&mut w, &s.marginal_cdf);
-            write_u16s(&mut w, &s.offsets);
-            write_u8s(&mut w, &s.conditional_pos);
-            write_u16s(&mut w, &s.conditional_cdf);
+            write_u16s(&mut w, s.marginal_pos());
+            write_u16s(&mut w, s.marginal_cdf());
+            write_u16s(&mut w, s.offsets());
+            write_u8s(&mut w, s.conditional_pos());
+            write_u16s(&mut w, s.conditional_cdf());
         }
         seal(&w.into_bytes())
     }
@@ -159,13 +159,18 @@ impl OutgoingSampler {
         }
         let mut slices = Vec::with_capacity(n.min(r.remaining()));
         for _ in 0..n {
-            let slice = PackedCdf2D {
-                marginal_pos: read_u16s(&mut r, "marginal positions")?,
-                marginal_cdf: read_u16s(&mut r, "marginal CDF")?,
-                offsets: read_u16s(&mut r, "offsets")?,
-                conditional_pos: read_u8s(&mut r, "conditional positions")?,
-                conditional_cdf: read_u16s(&mut r, "conditional CDF")?,
-            };
+            let marginal_pos = read_u16s(&mut r, "marginal positions")?;
+            let marginal_cdf = read_u16s(&mut r, "marginal CDF")?;
+            let offsets = read_u16s(&mut r, "offsets")?;
+            let conditional_pos = read_u8s(&mut r, "conditional positions")?;
+            let conditional_cdf = read_u16s(&mut r, "conditional CDF")?;
+            let slice = PackedCdf2D::from_arrays(
+                &marginal_pos,
+                &marginal_cdf,
+                &offsets,
+                conditional_pos,
+                &conditional_cdf,
+            );
             slice
                 .validate(n_phi_h, n_theta_h)
                 .map_err(|reason| invalid("slice", reason))?;

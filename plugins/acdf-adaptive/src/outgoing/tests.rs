@@ -140,3 +140,44 @@ fn storage_cap_is_kept() {
     let default = OutgoingBuilder::by_name("chi2", None, 32).unwrap();
     assert_eq!(default.max_bytes, Some(DEFAULT_MAX_BYTES));
 }
+
+/// `sample_batch` and `pdf_batch`, which find the blend and rotation of wo
+/// once, give the bits of `sample` and `pdf` one call at a time: at a
+/// breakpoint, between two, on the normal, next to the horizon, and for an
+/// invalid wo.
+#[test]
+fn batch_forms_equal_single_calls() {
+    let s = small(nickel()).with_cosine_mix(0.05).unwrap();
+    let angles = s.breakpoint_angles();
+    let k = angles.len() / 2;
+    let u: Vec<Vec2> = (0..300)
+        .map(|i| {
+            Vec2::new(
+                (i as f32 * 0.618_034).fract(),
+                (i as f32 * 0.414_214).fract(),
+            )
+        })
+        .collect();
+    let thetas = [0.0, angles[k], 0.5 * (angles[k] + angles[k + 1]), 1.56];
+    let mut wos: Vec<Vec3> = thetas.iter().map(|&t| direction(t, 0.7)).collect();
+    wos.push(Vec3::new(0.0, 0.0, -1.0));
+    for wo in wos {
+        let mut drawn = vec![None; u.len()];
+        s.sample_batch(wo, &u, &mut drawn);
+        let mut wis = Vec::new();
+        for (&u, d) in u.iter().zip(&drawn) {
+            let one = s.sample(wo, u);
+            assert_eq!(
+                one.map(|d| (d.wi.to_array().map(f32::to_bits), d.pdf.to_bits())),
+                d.map(|d| (d.wi.to_array().map(f32::to_bits), d.pdf.to_bits())),
+                "{wo} {u}"
+            );
+            wis.push(d.map_or(direction(0.3, 2.0), |d| d.wi));
+        }
+        let mut densities = vec![0.0; wis.len()];
+        s.pdf_batch(wo, &wis, &mut densities);
+        for (&wi, &p) in wis.iter().zip(&densities) {
+            assert_eq!(s.pdf(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
+        }
+    }
+}
