@@ -439,8 +439,8 @@ impl OutgoingSampler {
         }
         let theta = fast_atan2(s, wo.z).max(0.0);
         let u = (theta / FRAC_PI_2).sqrt().min(1.0);
-        // A count with no data-dependent branch (the compiler compares
-        // eight breakpoints at a time).
+        // A count with no data-dependent branch, which the compiler turns
+        // into SIMD compares.
         let k = b[1..last].iter().map(|&x| (x <= u) as usize).sum::<usize>();
         let t = ((u - b[k]) / (b[k + 1] - b[k])).clamp(0.0, 1.0);
         Outgoing { k, t, rotation }
