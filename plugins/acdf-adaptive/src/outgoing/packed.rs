@@ -31,8 +31,8 @@ pub struct Located {
 ///
 /// The 16-bit arrays (marginal positions, marginal CDF values, conditional
 /// offsets, conditional CDF values) are kept one after another in one
-/// buffer, so that a search can compare a fixed window of [`LANES`]
-/// entries around any of them at once (see [`count_at_or_below`]); the
+/// buffer, so that a search can compare a fixed window of 32 entries
+/// around any of them at once, whatever follows the curve searched; the
 /// conditional positions are a buffer of their own.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PackedCdf2D {
