@@ -26,6 +26,8 @@ use acdf_core::{
     Vec3, ONE_MINUS_EPSILON,
 };
 
+use acdf_core::fast::{fast_atan2, grid_cell};
+
 use crate::envmap::EnvMap;
 use crate::sampler::{finish_draw, TableBuilder};
 use crate::tables::{luminance_table, oriented_table};
@@ -105,23 +107,7 @@ impl NormalGrid {
     /// within the cap, else the cell of n's row (in z) and column (in φ).
     #[inline]
     pub fn node_of(&self, n: Vec3) -> usize {
-        let z = n.z.clamp(-1.0, 1.0);
-        let cap = self.cap_z() as f32;
-        if z >= cap {
-            return self.cell_count();
-        }
-        if z <= -cap {
-            return self.cell_count() + 1;
-        }
-        let (rows, cols) = (self.rows, self.columns);
-        let r = (((1.0 - z) * 0.5 * rows as f32) as usize).min(rows - 1);
-        // φ in turns, to within 4e-7 rad (inside the radius's margin).
-        let mut t = acdf_core::fast::fast_atan2(n.y, n.x) * (0.5 * std::f32::consts::FRAC_1_PI);
-        if t < 0.0 {
-            t += 1.0;
-        }
-        let c = ((t * cols as f32).max(0.0) as usize).min(cols - 1);
-        r * cols + c
+        NodeLocator::new(*self).node_of(n)
     }
 
     /// A bound on the angle (radians) between node `i`'s normal and every
@@ -160,6 +146,56 @@ impl NormalGrid {
     }
 }
 
+/// [`NormalGrid::node_of`] with the grid's constants converted once: what
+/// a sampler keeps to find a normal's node on every call.
+#[derive(Debug, Clone, Copy)]
+struct NodeLocator {
+    /// z at and above which a normal is in the north cap (−cap: south).
+    cap: f32,
+    /// R / 2: the row of z is ⌊(1 − z) R / 2⌋.
+    half_rows: f32,
+    last_row: f32,
+    columns: f32,
+    last_column: f32,
+    column_count: usize,
+    cells: usize,
+}
+
+impl NodeLocator {
+    fn new(grid: NormalGrid) -> NodeLocator {
+        NodeLocator {
+            cap: grid.cap_z() as f32,
+            half_rows: 0.5 * grid.rows as f32,
+            last_row: (grid.rows - 1) as f32,
+            columns: grid.columns as f32,
+            last_column: (grid.columns - 1) as f32,
+            column_count: grid.columns,
+            cells: grid.cell_count(),
+        }
+    }
+
+    /// The node of the unit normal `n`: the cell of its row and column, or
+    /// a cap's node, chosen by selects (the normals of a scene come in any
+    /// order, so a branch on the cap would be mispredicted).
+    #[inline(always)]
+    fn node_of(&self, n: Vec3) -> usize {
+        let r = grid_cell((1.0 - n.z) * self.half_rows, self.last_row);
+        // φ in turns, to within 4e-7 rad (inside the radius's margin).
+        let t = fast_atan2(n.y, n.x) * (0.5 * std::f32::consts::FRAC_1_PI);
+        let t = if t < 0.0 { t + 1.0 } else { t };
+        let c = grid_cell(t * self.columns, self.last_column);
+        let cell = r * self.column_count + c;
+        let north = (n.z >= self.cap) as usize;
+        let south = (n.z <= -self.cap) as usize;
+        let polar = self.cells + south;
+        if north + south > 0 {
+            polar
+        } else {
+            cell
+        }
+    }
+}
+
 /// The unit vector of height `z` and azimuth `phi`.
 fn unit(z: f64, phi: f64) -> Vec3 {
     let s = (1.0 - z * z).max(0.0).sqrt();
@@ -183,6 +219,7 @@ pub struct OrientedSampler<B: TableBuilder> {
     map: Arc<EnvMap>,
     builder: B,
     grid: NormalGrid,
+    locator: NodeLocator,
     nodes: Box<[LazyNode<B::Dist>]>,
     plain: B::Dist,
     defensive: f32,
@@ -229,6 +266,7 @@ impl<B: TableBuilder> OrientedSampler<B> {
             map,
             builder,
             grid,
+            locator: NodeLocator::new(grid),
             nodes,
             plain,
             defensive,
@@ -289,7 +327,7 @@ impl<B: TableBuilder> OrientedSampler<B> {
     /// The distribution of the unit normal `n`'s node, if it has one.
     #[inline]
     fn node_dist(&self, n: Vec3) -> Option<&B::Dist> {
-        self.node(self.grid.node_of(n))
+        self.node(self.locator.node_of(n))
     }
 
     /// The density (in the unit square) for a normal with the node
