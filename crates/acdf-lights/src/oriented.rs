@@ -22,8 +22,8 @@
 use std::sync::{Arc, OnceLock};
 
 use acdf_core::{
-    clamp_unit, usable_normal, Distribution2D, Error, Result, SphereSample, SphereSampler, Vec2,
-    Vec3, ONE_MINUS_EPSILON,
+    clamp_unit, Distribution2D, Error, Result, SphereSample, SphereSampler, Vec2, Vec3,
+    ONE_MINUS_EPSILON,
 };
 
 use acdf_core::fast::{fast_atan2, grid_cell};
@@ -196,6 +196,17 @@ impl NodeLocator {
     }
 }
 
+/// `acdf_core::usable_normal` (the normal scaled to unit length, `None`
+/// for one that is not finite or has no length), with its test on the
+/// squared length as one integer compare: the bit patterns of the positive
+/// finite floats are 1 ..= 0x7f7f_ffff.
+#[inline(always)]
+fn unit_normal(normal: Option<Vec3>) -> Option<Vec3> {
+    let n = normal?;
+    let len2 = n.length_squared();
+    (len2.to_bits().wrapping_sub(1) < 0x7f7f_ffff).then(|| n / len2.sqrt())
+}
+
 /// The unit vector of height `z` and azimuth `phi`.
 fn unit(z: f64, phi: f64) -> Vec3 {
     let s = (1.0 - z * z).max(0.0).sqrt();
@@ -364,7 +375,7 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
     /// component's part comes with the draw.
     fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
         let grid = self.map.grid();
-        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
         let Some(d) = node else {
             let s = self.plain.sample(u);
             return finish_draw(grid, s, |_, _| s.pdf, |dir| self.density_of(None, dir));
@@ -397,7 +408,7 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
     }
 
     fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
         self.density_of(node, dir)
     }
 
@@ -414,7 +425,7 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
 
     /// The node is found once for the whole batch.
     fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
-        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
         for (o, &d) in out.iter_mut().zip(dir) {
             *o = self.density_of(node, d);
         }
@@ -424,6 +435,41 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The one-compare test of `unit_normal` agrees with
+    /// `acdf_core::usable_normal` bit for bit.
+    #[test]
+    fn unit_normals_agree_with_usable_normal() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e-30,
+            1e-20,
+            3e19,
+            1e30,
+            f32::MIN_POSITIVE,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for &x in &values {
+            for &y in &values {
+                for &z in &values[..6] {
+                    let n = Some(Vec3::new(x, y, z));
+                    let (a, b) = (unit_normal(n), acdf_core::usable_normal(n));
+                    assert_eq!(
+                        a.map(|v| v.to_array().map(f32::to_bits)),
+                        b.map(|v| v.to_array().map(f32::to_bits)),
+                        "{n:?}"
+                    );
+                }
+            }
+        }
+        assert_eq!(unit_normal(None), None);
+    }
 
     /// Every normal's node is within the node's radius of it; the poles
     /// and the caps go to the polar nodes; a cell's centre to its cell.
