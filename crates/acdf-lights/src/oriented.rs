@@ -13,7 +13,8 @@
 //!
 //! A normal draws from its region's table alone, and the density is that
 //! table's: one table searched per draw, whose density comes with the
-//! draw, so a call costs about what a draw from the plain table does. The
+//! draw, so a call costs finding the normal's region (its row, and its
+//! column by an arctangent) and a draw from one table. The
 //! estimator is unbiased for every normal because the table covers every
 //! texel the normal sees. An optional defensive share mixes in the plain
 //! luminance table (the mixture's density then needs one lookup in the
