@@ -13,7 +13,8 @@
 //!
 //! A normal draws from its region's table alone, and the density is that
 //! table's: one table searched per draw, whose density comes with the
-//! draw, so a call costs about what a draw from the plain table does. The
+//! draw, so a call costs finding the normal's region (its row, and its
+//! column by an arctangent) and a draw from one table. The
 //! estimator is unbiased for every normal because the table covers every
 //! texel the normal sees. An optional defensive share mixes in the plain
 //! luminance table (the mixture's density then needs one lookup in the
@@ -22,9 +23,11 @@
 use std::sync::{Arc, OnceLock};
 
 use acdf_core::{
-    clamp_unit, usable_normal, Distribution2D, Error, Result, SphereSample, SphereSampler, Vec2,
-    Vec3, ONE_MINUS_EPSILON,
+    clamp_unit, Distribution2D, Error, Result, SphereSample, SphereSampler, Vec2, Vec3,
+    ONE_MINUS_EPSILON,
 };
+
+use acdf_core::fast::{fast_atan2, grid_cell};
 
 use crate::envmap::EnvMap;
 use crate::sampler::{finish_draw, TableBuilder};
@@ -105,23 +108,7 @@ impl NormalGrid {
     /// within the cap, else the cell of n's row (in z) and column (in φ).
     #[inline]
     pub fn node_of(&self, n: Vec3) -> usize {
-        let z = n.z.clamp(-1.0, 1.0);
-        let cap = self.cap_z() as f32;
-        if z >= cap {
-            return self.cell_count();
-        }
-        if z <= -cap {
-            return self.cell_count() + 1;
-        }
-        let (rows, cols) = (self.rows, self.columns);
-        let r = (((1.0 - z) * 0.5 * rows as f32) as usize).min(rows - 1);
-        // φ in turns, to within 4e-7 rad (inside the radius's margin).
-        let mut t = acdf_core::fast::fast_atan2(n.y, n.x) * (0.5 * std::f32::consts::FRAC_1_PI);
-        if t < 0.0 {
-            t += 1.0;
-        }
-        let c = ((t * cols as f32).max(0.0) as usize).min(cols - 1);
-        r * cols + c
+        NodeLocator::new(*self).node_of(n)
     }
 
     /// A bound on the angle (radians) between node `i`'s normal and every
@@ -160,6 +147,67 @@ impl NormalGrid {
     }
 }
 
+/// [`NormalGrid::node_of`] with the grid's constants converted once: what
+/// a sampler keeps to find a normal's node on every call.
+#[derive(Debug, Clone, Copy)]
+struct NodeLocator {
+    /// z at and above which a normal is in the north cap (−cap: south).
+    cap: f32,
+    /// R / 2: the row of z is ⌊(1 − z) R / 2⌋.
+    half_rows: f32,
+    last_row: f32,
+    columns: f32,
+    last_column: f32,
+    column_count: usize,
+    cells: usize,
+}
+
+impl NodeLocator {
+    fn new(grid: NormalGrid) -> NodeLocator {
+        NodeLocator {
+            cap: grid.cap_z() as f32,
+            half_rows: 0.5 * grid.rows as f32,
+            last_row: (grid.rows - 1) as f32,
+            columns: grid.columns as f32,
+            last_column: (grid.columns - 1) as f32,
+            column_count: grid.columns,
+            cells: grid.cell_count(),
+        }
+    }
+
+    /// The node of the unit normal `n`: the cell of its row and column, or
+    /// a cap's node, chosen by selects (the normals of a scene come in any
+    /// order, so a branch on the cap would be mispredicted).
+    #[inline(always)]
+    fn node_of(&self, n: Vec3) -> usize {
+        let r = grid_cell((1.0 - n.z) * self.half_rows, self.last_row);
+        // φ in turns, to within 4e-7 rad (inside the radius's margin).
+        let t = fast_atan2(n.y, n.x) * (0.5 * std::f32::consts::FRAC_1_PI);
+        let t = if t < 0.0 { t + 1.0 } else { t };
+        let c = grid_cell(t * self.columns, self.last_column);
+        let cell = r * self.column_count + c;
+        let north = (n.z >= self.cap) as usize;
+        let south = (n.z <= -self.cap) as usize;
+        let polar = self.cells + south;
+        if north + south > 0 {
+            polar
+        } else {
+            cell
+        }
+    }
+}
+
+/// `acdf_core::usable_normal` (the normal scaled to unit length, `None`
+/// for one that is not finite or has no length), with its test on the
+/// squared length as one integer compare: the bit patterns of the positive
+/// finite floats are 1 ..= 0x7f7f_ffff.
+#[inline(always)]
+fn unit_normal(normal: Option<Vec3>) -> Option<Vec3> {
+    let n = normal?;
+    let len2 = n.length_squared();
+    (len2.to_bits().wrapping_sub(1) < 0x7f7f_ffff).then(|| n / len2.sqrt())
+}
+
 /// The unit vector of height `z` and azimuth `phi`.
 fn unit(z: f64, phi: f64) -> Vec3 {
     let s = (1.0 - z * z).max(0.0).sqrt();
@@ -183,6 +231,7 @@ pub struct OrientedSampler<B: TableBuilder> {
     map: Arc<EnvMap>,
     builder: B,
     grid: NormalGrid,
+    locator: NodeLocator,
     nodes: Box<[LazyNode<B::Dist>]>,
     plain: B::Dist,
     defensive: f32,
@@ -229,6 +278,7 @@ impl<B: TableBuilder> OrientedSampler<B> {
             map,
             builder,
             grid,
+            locator: NodeLocator::new(grid),
             nodes,
             plain,
             defensive,
@@ -289,7 +339,7 @@ impl<B: TableBuilder> OrientedSampler<B> {
     /// The distribution of the unit normal `n`'s node, if it has one.
     #[inline]
     fn node_dist(&self, n: Vec3) -> Option<&B::Dist> {
-        self.node(self.grid.node_of(n))
+        self.node(self.locator.node_of(n))
     }
 
     /// The density (in the unit square) for a normal with the node
@@ -326,7 +376,7 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
     /// component's part comes with the draw.
     fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
         let grid = self.map.grid();
-        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
         let Some(d) = node else {
             let s = self.plain.sample(u);
             return finish_draw(grid, s, |_, _| s.pdf, |dir| self.density_of(None, dir));
@@ -359,7 +409,7 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
     }
 
     fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
         self.density_of(node, dir)
     }
 
@@ -376,7 +426,7 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
 
     /// The node is found once for the whole batch.
     fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
-        let node = usable_normal(normal).and_then(|n| self.node_dist(n));
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
         for (o, &d) in out.iter_mut().zip(dir) {
             *o = self.density_of(node, d);
         }
@@ -386,6 +436,41 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The one-compare test of `unit_normal` agrees with
+    /// `acdf_core::usable_normal` bit for bit.
+    #[test]
+    fn unit_normals_agree_with_usable_normal() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e-30,
+            1e-20,
+            3e19,
+            1e30,
+            f32::MIN_POSITIVE,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for &x in &values {
+            for &y in &values {
+                for &z in &values[..6] {
+                    let n = Some(Vec3::new(x, y, z));
+                    let (a, b) = (unit_normal(n), acdf_core::usable_normal(n));
+                    assert_eq!(
+                        a.map(|v| v.to_array().map(f32::to_bits)),
+                        b.map(|v| v.to_array().map(f32::to_bits)),
+                        "{n:?}"
+                    );
+                }
+            }
+        }
+        assert_eq!(unit_normal(None), None);
+    }
 
     /// Every normal's node is within the node's radius of it; the poles
     /// and the caps go to the polar nodes; a cell's centre to its cell.

@@ -93,7 +93,11 @@ pub fn finish_draw(
     } else {
         pdf(dir)
     };
-    (pdf > 0.0 && pdf.is_finite()).then_some(SphereSample { dir, pdf })
+    // pdf > 0 and finite, as one integer compare: the bit patterns of the
+    // positive finite floats are 1 ..= 0x7f7f_ffff (NaN, infinities, zeros
+    // and negatives fall outside).
+    let positive_finite = pdf.to_bits().wrapping_sub(1) < 0x7f7f_ffff;
+    positive_finite.then_some(SphereSample { dir, pdf })
 }
 
 /// The solid-angle density of `dir` under a distribution over `grid`'s

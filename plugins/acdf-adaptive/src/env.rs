@@ -5,11 +5,13 @@
 //! - [`AdaptiveEnvSampler`]: the luminance table (`adaptive:NAME`) or its
 //!   compensated form (`adaptive-comp:NAME`);
 //! - [`OrientedEnvSampler`]: one adaptive table per region of normals (a
-//!   cell of a grid, or a polar cap), built on first use; a shading normal
-//!   draws from its region's table (`oriented:NAME`).
+//!   cell of a grid, or a polar cap), built on first use and kept packed
+//!   ([`PackedEnvCdf2D`](crate::PackedEnvCdf2D)); a shading normal draws from its region's table
+//!   (`oriented:NAME`).
 
 use std::sync::Arc;
 
+use crate::packed_env::PackedEnvBuilder;
 use crate::{AdaptiveBuilder, AdaptiveCdf2D};
 use acdf_core::Result;
 use acdf_lights::{EnvMap, LatLongSampler, NormalGrid, OrientedSampler, TableBuilder, TableKind};
@@ -34,8 +36,10 @@ impl TableBuilder for AdaptiveBuilder {
 /// Directions from an adaptive table over the texels of a lat-long map.
 pub type AdaptiveEnvSampler = LatLongSampler<AdaptiveCdf2D>;
 
-/// The orientation-aware sampler with adaptive tables.
-pub type OrientedEnvSampler = OrientedSampler<AdaptiveBuilder>;
+/// The orientation-aware sampler with adaptive tables in packed form: a
+/// scene reads one table per region of normals it reaches, so their size
+/// decides how many of its reads hit the cache.
+pub type OrientedEnvSampler = OrientedSampler<PackedEnvBuilder>;
 
 /// The adaptive environment sampler of `map` for the table `kind`, named
 /// `adaptive:NAME` or `adaptive-comp:NAME`.
@@ -61,7 +65,7 @@ pub fn oriented_env_sampler(
     defensive: f32,
 ) -> Result<OrientedEnvSampler> {
     let name = format!("oriented:{}", builder.simplifier.name());
-    OrientedSampler::new(name, map, builder, grid, defensive)
+    OrientedSampler::new(name, map, PackedEnvBuilder(builder), grid, defensive)
 }
 
 /// The mean kept vertices of an adaptive table: (marginal vertices, mean

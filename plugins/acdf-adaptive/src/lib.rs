@@ -19,7 +19,8 @@
 //!   [`average_resolution`] reports the mean kept vertices as in the paper;
 //! - [`env`](mod@env): the same distributions over the texels of an environment map
 //!   ([`AdaptiveEnvSampler`]) and per cell of shading normals
-//!   ([`OrientedEnvSampler`]);
+//!   ([`OrientedEnvSampler`], whose tables [`packed_env`] keeps in 16-bit
+//!   form);
 //! - [`outgoing`]: [`OutgoingSampler`], slices kept only at the θ_o
 //!   breakpoints a material needs, blended linearly between them, stored
 //!   in 16 bits.
@@ -65,6 +66,7 @@ mod curve;
 pub mod dist;
 pub mod env;
 pub mod outgoing;
+pub mod packed_env;
 pub mod persist;
 pub mod sampler;
 pub mod simplify;
@@ -72,6 +74,7 @@ pub mod simplify;
 pub use dist::{AdaptiveCdf1D, AdaptiveCdf2D};
 pub use env::{adaptive_env_sampler, oriented_env_sampler, AdaptiveEnvSampler, OrientedEnvSampler};
 pub use outgoing::{OutgoingBuilder, OutgoingSampler};
+pub use packed_env::{PackedEnvBuilder, PackedEnvCdf2D};
 pub use sampler::{adaptive_sampler, average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 pub use simplify::{
     chi_square_error, perpendicular_error, simplifier_by_name, vertical_error, ChiSquareOptimal,

@@ -1,0 +1,646 @@
+//! An adaptive 2D CDF over the texels of an environment map in a compact
+//! form: the orientation-aware sampler keeps one table per region of
+//! normals, and a scene whose normals reach a few dozen regions reads all
+//! of them, so their size decides how many of their reads hit the cache.
+//!
+//! [`PackedEnvCdf2D`] keeps the vertices an [`AdaptiveCdf2D`] chose and
+//! recomputes their masses from the table: the conditionals (nearly all of
+//! the storage) as 16-bit column indices and 16-bit CDF values, 4 bytes a
+//! vertex instead of 8; the marginal (a few hundred vertices) as `f32`
+//! row positions and CDF values in units of 2^-24, searched as the
+//! adaptive marginal is. Every segment whose texels hold mass keeps at
+//! least one unit of its curve, so every texel with a positive table value
+//! has a positive density, and the density returned with a draw is the one
+//! [`pdf`](Distribution2D::pdf) gives its point: the quantisation changes
+//! which distribution is sampled (slightly), never the exactness of its
+//! density.
+
+use acdf_core::search::{count_at_or_below, count_window, Guide, WINDOW};
+use acdf_core::{clamp_unit, Distribution2D, Error, Result, Sample2D, Vec2, ONE_MINUS_EPSILON};
+use acdf_lights::TableBuilder;
+
+use crate::curve::{f32_below, segment_density, segment_samples, Segment, CURVE_GUIDE_CELLS};
+use crate::{AdaptiveBuilder, AdaptiveCdf2D};
+
+/// The largest quantised conditional CDF value: c is stored as about
+/// c · 65535.
+const Q16: u32 = u16::MAX as u32;
+/// The marginal's CDF unit, 2^-24: multiples of it below 1 are exact in
+/// `f32`, and so are their differences.
+const Q24: u32 = 1 << 24;
+/// The number of conditional vertices compared at once
+/// ([`count_vertices_at_or_below`]).
+pub const WINDOW_PAIRS: usize = 32;
+/// A packed conditional vertex: column index in the low 16 bits, quantised
+/// CDF value in the high 16.
+type Pair = u32;
+
+/// One marginal vertex: its row position j / n_y, and the first conditional
+/// vertex of the marginal segment that starts at it (for the last vertex,
+/// the end of the conditionals).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+struct MarginalVertex {
+    y: f32,
+    first: u32,
+}
+
+/// A piecewise-linear 2D CDF over the unit square whose vertices lie on the
+/// texel grid of an `n_x` × `n_y` table: a marginal over rows (y) and, per
+/// marginal segment, a conditional over columns (x). See the module
+/// documentation.
+///
+/// The layout follows the chain of reads of a draw, so that the chain has
+/// few links: the marginal's guide is held inline (it is read first, from
+/// u.y alone); the marginal's CDF values are contiguous, for the window
+/// that compares 32 of them at once; each marginal vertex carries its row
+/// position and its conditional's first vertex together (one read gives
+/// both); a conditional's vertices are packed pairs (column index, CDF
+/// value) in one `u32`, so that the window searched for u.x also holds the
+/// segment's ends.
+///
+/// Storage: 12 bytes per marginal vertex, 132 for the guide, 4 bytes per
+/// conditional vertex, and padding after the marginal's CDF values and
+/// the conditionals (32 entries each) so that a window can always be read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PackedEnvCdf2D {
+    /// For the guide cell g of u.y, the marginal's inner CDF values at or
+    /// below every u of the cell: `guide[g]`, and the candidates end at
+    /// `guide[g + 1]` (see `acdf_core::search::Guide`).
+    guide: [u32; CURVE_GUIDE_CELLS + 1],
+    /// The marginal's m CDF values (multiples of 2^-24 from 0 to 1), then
+    /// the padding (1.0).
+    marginal_cdf: Box<[f32]>,
+    /// The marginal's m vertices.
+    marginal: Box<[MarginalVertex]>,
+    /// The conditionals' vertices (column index 0 = p_0 < ... < p_{k-1} =
+    /// n_x, CDF values 0 = c_0 <= ... <= c_{k-1} = 65535), one conditional
+    /// after another, then the padding (all ones).
+    conditionals: Box<[Pair]>,
+    n_x: f32,
+    /// n_x / 65535: a conditional segment's density is its mass in units
+    /// times this, over its width in columns.
+    density_scale: f32,
+    integral: f64,
+}
+
+/// The typed error of a table the packed form cannot hold.
+fn too_large(reason: String) -> Error {
+    Error::InvalidParameter {
+        name: "packed environment table",
+        reason,
+    }
+}
+
+impl PackedEnvCdf2D {
+    /// The packed form of `d`, built from `values` (row-major, `n_y` rows of
+    /// `n_x`, the table `d` was built from): the vertices `d` kept, with
+    /// their masses summed from the table in f64 and quantised. An error
+    /// when `d`'s vertices are off the texel grid or the table has more
+    /// than 65535 columns or 2^24 rows.
+    pub fn from_adaptive(
+        d: &AdaptiveCdf2D,
+        values: &[f32],
+        n_x: usize,
+        n_y: usize,
+    ) -> Result<Self> {
+        if n_x == 0 || n_y == 0 || values.len() != n_x * n_y {
+            return Err(Error::SizeMismatch {
+                what: "packed environment table",
+                expected: n_x * n_y,
+                got: values.len(),
+            });
+        }
+        if n_x > Q16 as usize || n_y > Q24 as usize {
+            return Err(too_large(format!(
+                "{n_x} x {n_y} texels: at most 65535 columns and 2^24 rows"
+            )));
+        }
+        let rows: Vec<f64> = values
+            .chunks_exact(n_x)
+            .map(|r| r.iter().map(|&v| v as f64).sum())
+            .collect();
+        let total: f64 = rows.iter().sum();
+        let cells = (n_x * n_y) as f64;
+        let m = d.marginal_vertex_count();
+        let marginal_rows = grid_indices(&d.marginal[..m], n_y)?;
+        let (marginal_rows, segment_mass) = if total > 0.0 {
+            let mass: Vec<f64> = marginal_rows
+                .windows(2)
+                .map(|w| rows[w[0]..w[1]].iter().sum())
+                .collect();
+            (marginal_rows, mass)
+        } else {
+            // No mass: the uniform density over one segment.
+            (vec![0, n_y], vec![1.0])
+        };
+        let quantised = quantise(&segment_mass, Q24);
+        let mut marginal_cdf: Vec<f32> = quantised
+            .iter()
+            .map(|&c| (c as f64 / Q24 as f64) as f32)
+            .collect();
+
+        let mut firsts = vec![0u32];
+        let mut conditionals: Vec<Pair> = Vec::new();
+        let mut columns = vec![0.0f64; n_x];
+        for (j, w) in marginal_rows.windows(2).enumerate() {
+            if quantised[j + 1] > quantised[j] {
+                let xs = if total > 0.0 {
+                    let (a, b) = (d.offsets[j] as usize, d.offsets[j + 1] as usize);
+                    &d.conditionals[2 * a..2 * a + (b - a)]
+                } else {
+                    &[][..]
+                };
+                let pos = if xs.len() >= 2 {
+                    grid_indices(xs, n_x)?
+                } else {
+                    vec![0, n_x]
+                };
+                if total > 0.0 {
+                    columns.iter_mut().for_each(|c| *c = 0.0);
+                    for row in values[w[0] * n_x..w[1] * n_x].chunks_exact(n_x) {
+                        for (c, &v) in columns.iter_mut().zip(row) {
+                            *c += v as f64;
+                        }
+                    }
+                } else {
+                    columns.iter_mut().for_each(|c| *c = 1.0);
+                }
+                let masses: Vec<f64> = pos
+                    .windows(2)
+                    .map(|p| columns[p[0]..p[1]].iter().sum())
+                    .collect();
+                let cdf = quantise(&masses, Q16);
+                conditionals.extend(pos.iter().zip(&cdf).map(|(&p, &c)| p as u32 | c << 16));
+            }
+            let end = u32::try_from(conditionals.len())
+                .map_err(|_| too_large("more than 2^32 conditional vertices".into()))?;
+            firsts.push(end);
+        }
+        conditionals.extend([Pair::MAX; WINDOW_PAIRS]);
+        let marginal: Vec<MarginalVertex> = marginal_rows
+            .iter()
+            .zip(&firsts)
+            .map(|(&j, &first)| MarginalVertex {
+                y: (j as f64 / n_y as f64) as f32,
+                first,
+            })
+            .collect();
+        let m = marginal_cdf.len();
+        // guide[g]: the inner CDF values (c_1 .. c_{m-2}) in cells below g.
+        let inner = &marginal_cdf[1..m - 1];
+        let mut guide = [0u32; CURVE_GUIDE_CELLS + 1];
+        let mut k = 0;
+        for (g, lo) in guide.iter_mut().enumerate() {
+            while k < inner.len() && Guide::cell(inner[k], CURVE_GUIDE_CELLS) < g {
+                k += 1;
+            }
+            *lo = k as u32;
+        }
+        marginal_cdf.extend([1.0f32; WINDOW]);
+        Ok(PackedEnvCdf2D {
+            guide,
+            marginal_cdf: marginal_cdf.into_boxed_slice(),
+            marginal: marginal.into_boxed_slice(),
+            conditionals: conditionals.into_boxed_slice(),
+            n_x: n_x as f32,
+            density_scale: (n_x as f64 / Q16 as f64) as f32,
+            integral: if total > 0.0 { total / cells } else { 0.0 },
+        })
+    }
+
+    /// The number of marginal vertices.
+    pub fn marginal_vertex_count(&self) -> usize {
+        self.marginal.len()
+    }
+
+    /// The number of conditional vertices stored, over all conditionals.
+    pub fn conditional_vertex_total(&self) -> usize {
+        self.conditionals.len() - WINDOW_PAIRS
+    }
+
+    /// Marginal segment j, from vertex j to j + 1.
+    #[inline(always)]
+    fn marginal_segment(&self, j: usize) -> (Segment, usize, usize) {
+        let (v0, v1) = (self.marginal[j], self.marginal[j + 1]);
+        let segment = Segment {
+            x0: v0.y,
+            x1: v1.y,
+            c0: self.marginal_cdf[j],
+            c1: self.marginal_cdf[j + 1],
+        };
+        (segment, v0.first as usize, v1.first as usize)
+    }
+
+    /// The marginal segment j holding y in [0, 1): the last vertex at or
+    /// below y.
+    #[inline]
+    fn marginal_segment_of(&self, y: f32) -> usize {
+        let m = self.marginal.len();
+        self.marginal[1..m - 1].partition_point(|v| v.y <= y)
+    }
+
+    /// The segment of a conditional (vertices `first..end`, at least two)
+    /// holding column position t: the last vertex whose column is at or
+    /// below t.
+    #[inline]
+    fn conditional_segment_of(&self, first: usize, end: usize, t: f32) -> usize {
+        first
+            + self.conditionals[first + 1..end - 1].partition_point(|&e| ((e & 0xffff) as f32) <= t)
+    }
+
+    /// The density of the conditional segment from vertex i to i + 1.
+    #[inline(always)]
+    fn conditional_density(&self, e0: Pair, e1: Pair) -> f32 {
+        let mass = ((e1 >> 16) - (e0 >> 16)) as f32;
+        let width = ((e1 & 0xffff) - (e0 & 0xffff)) as f32;
+        mass * self.density_scale / width
+    }
+}
+
+impl Distribution2D for PackedEnvCdf2D {
+    /// y from the marginal with u.y, then x from the conditional of y's
+    /// marginal segment with u.x: x = (p_k + (u' − c_k) / (c_{k+1} − c_k)
+    /// (p_{k+1} − p_k)) / n_x with u' = u.x · 65535 and c_k <= ⌊u'⌋ <
+    /// c_{k+1}; pdf = p_marginal(y) · (c_{k+1} − c_k) n_x / (65535 (p_{k+1}
+    /// − p_k)).
+    #[inline(always)]
+    fn sample(&self, u: Vec2) -> Sample2D {
+        let uy = clamp_unit(u.y);
+        let g = Guide::cell(uy, CURVE_GUIDE_CELLS);
+        let (a, b) = (self.guide[g] as usize, self.guide[g + 1] as usize);
+        // The conditional of the cell's first segment, the likeliest, is
+        // asked for while the marginal is searched.
+        if let Some(v) = self.marginal.get(a) {
+            prefetch(&self.conditionals, v.first as usize);
+        }
+        let j = a + if b - a <= WINDOW {
+            count_window(&self.marginal_cdf, 1 + a, b - a, uy)
+        } else {
+            count_at_or_below(&self.marginal_cdf, 1 + a, b - a, [uy])[0]
+        };
+        let (segment, first, end) = self.marginal_segment(j);
+        let ([y], [py]) = segment_samples(&[segment], &[uy]);
+        // A drawn segment has mass, so its conditional has two vertices or
+        // more; the `max` keeps a corrupt one in bounds.
+        let len = end.saturating_sub(first).max(2);
+        let us = clamp_unit(u.x) * Q16 as f32;
+        let key = ((us as u32) << 16) | 0xffff;
+        let i = first + count_vertices_at_or_below(&self.conditionals, first + 1, len - 2, key);
+        let (e0, e1) = (self.conditionals[i], self.conditionals[i + 1]);
+        let (c0, c1) = ((e0 >> 16) as f32, (e1 >> 16) as f32);
+        let (p0, p1) = ((e0 & 0xffff) as f32, (e1 & 0xffff) as f32);
+        let frac = ((us - c0) / (c1 - c0)).clamp(0.0, 1.0);
+        // Kept below p_{k+1}, so that `pdf` finds the segment again (exactly
+        // when n_x is a power of two; the samplers' texel margins cover
+        // the rounding of x n_x otherwise).
+        let t = (p0 + frac * (p1 - p0)).min(f32_below(p1));
+        let x = (t / self.n_x).min(ONE_MINUS_EPSILON);
+        Sample2D {
+            p: Vec2::new(x, y),
+            pdf: py * self.conditional_density(e0, e1),
+        }
+    }
+
+    /// The marginal density of y's segment times the conditional density
+    /// of x's segment; 0 outside [0, 1)^2 and on segments without mass.
+    #[inline]
+    fn pdf(&self, p: Vec2) -> f32 {
+        if !((0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y)) {
+            return 0.0;
+        }
+        let j = self.marginal_segment_of(p.y);
+        let (segment, first, end) = self.marginal_segment(j);
+        let py = segment_density(segment);
+        if py == 0.0 || end < first + 2 {
+            return 0.0;
+        }
+        let i = self.conditional_segment_of(first, end, p.x * self.n_x);
+        py * self.conditional_density(self.conditionals[i], self.conditionals[i + 1])
+    }
+
+    /// (P_marginal(y), P_j(x)) with j the marginal segment of y, both
+    /// piecewise linear through the stored vertices.
+    fn invert(&self, p: Vec2) -> Vec2 {
+        let clamp = |v: f32| if v > 0.0 { v.min(1.0) } else { 0.0 };
+        let (x, y) = (clamp(p.x), clamp(p.y));
+        let j = self.marginal_segment_of(y);
+        let (s, first, end) = self.marginal_segment(j);
+        let fy = ((y - s.x0) / (s.x1 - s.x0)).clamp(0.0, 1.0);
+        let uy = (s.c0 + fy * (s.c1 - s.c0)).clamp(s.c0, s.c1);
+        if end < first + 2 {
+            return Vec2::new(x, uy);
+        }
+        let t = x * self.n_x;
+        let i = self.conditional_segment_of(first, end, t);
+        let (e0, e1) = (self.conditionals[i], self.conditionals[i + 1]);
+        let (p0, p1) = ((e0 & 0xffff) as f32, (e1 & 0xffff) as f32);
+        let (c0, c1) = ((e0 >> 16) as f32, (e1 >> 16) as f32);
+        let f = ((t - p0) / (p1 - p0)).clamp(0.0, 1.0);
+        Vec2::new(((c0 + f * (c1 - c0)) / Q16 as f32).min(1.0), uy)
+    }
+
+    /// The table's mean value.
+    fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// The guide, the marginal's CDF values and vertices, the conditionals
+    /// and the padding.
+    fn storage_bytes(&self) -> usize {
+        std::mem::size_of_val(&self.guide)
+            + std::mem::size_of_val(&*self.marginal_cdf)
+            + std::mem::size_of_val(&*self.marginal)
+            + std::mem::size_of_val(&*self.conditionals)
+    }
+}
+
+/// Builds [`PackedEnvCdf2D`]s: the adaptive table of the wrapped
+/// [`AdaptiveBuilder`], packed.
+#[derive(Debug, Clone)]
+pub struct PackedEnvBuilder(pub AdaptiveBuilder);
+
+impl TableBuilder for PackedEnvBuilder {
+    type Dist = PackedEnvCdf2D;
+
+    /// `adaptive:NAME`, the simplifier's family.
+    fn name(&self) -> String {
+        TableBuilder::name(&self.0)
+    }
+
+    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<PackedEnvCdf2D> {
+        let d = self.0.build(values, nx, ny)?;
+        PackedEnvCdf2D::from_adaptive(&d, values, nx, ny)
+    }
+}
+
+/// Grid indices k of positions k / n (exact for the vertices a simplifier
+/// keeps of a tabulated CDF).
+fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<usize>> {
+    xs.iter()
+        .map(|&x| {
+            let t = x as f64 * n as f64;
+            let k = t.round();
+            if (t - k).abs() > 1e-3 || k < 0.0 || k > n as f64 {
+                Err(too_large(format!(
+                    "vertex at {x} is not on the grid of {n} cells"
+                )))
+            } else {
+                Ok(k as usize)
+            }
+        })
+        .collect()
+}
+
+/// Quantised CDF values (0 to `q`) of segments with these masses (not all
+/// zero): round(c · q) of the exact CDF c, except that a segment with mass
+/// keeps at least one unit and a segment without keeps none (so the curve
+/// needs fewer positive segments than q).
+fn quantise(masses: &[f64], q: u32) -> Vec<u32> {
+    let total: f64 = masses.iter().sum();
+    let mut positive_after = vec![0u32; masses.len() + 1];
+    for i in (0..masses.len()).rev() {
+        positive_after[i] = positive_after[i + 1] + (masses[i] > 0.0) as u32;
+    }
+    let mut out = Vec::with_capacity(masses.len() + 1);
+    out.push(0u32);
+    let mut running = 0.0f64;
+    for (i, &mass) in masses.iter().enumerate() {
+        running += mass;
+        let previous = *out.last().expect("one value");
+        let v = if mass > 0.0 {
+            let target = (running / total * q as f64).round() as u32;
+            target
+                .max(previous + 1)
+                .min(q.saturating_sub(positive_after[i + 1]))
+        } else {
+            previous
+        };
+        out.push(v);
+    }
+    out
+}
+
+/// Ask the CPU for the cache lines of `data[start..start + 32]` (a hint:
+/// no effect on any result, and addresses past the end are allowed).
+#[inline(always)]
+fn prefetch(data: &[Pair], start: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = data.as_ptr().wrapping_add(start);
+        for offset in [0, 16] {
+            // SAFETY: SSE is part of the x86-64 baseline, and a prefetch
+            // reads nothing the program sees: it may name any address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(offset) as *const i8) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (data, start);
+    }
+}
+
+/// The number of the packed vertices `data[start..start + len]` (CDF
+/// values non-decreasing) whose pair is `<= key` as an unsigned integer:
+/// with key = (k << 16) | 0xffff, those whose CDF value is at most k,
+/// whatever their columns.
+///
+/// A four-way search cuts the list down to at most [`WINDOW_PAIRS`]
+/// candidates (three probes, the number at or below the key added as
+/// integers: no branch that follows the key), then one window of
+/// [`WINDOW_PAIRS`] entries is compared at once ([`window_mask`]) and the
+/// answer is the run of ones from its first bit, cut at the candidates'
+/// number. The window may reach past the list (into the next conditional or
+/// the padding), never past `data` when `data` ends with [`WINDOW_PAIRS`]
+/// entries after the list, as the packed conditionals do; for a shorter
+/// `data` it ends at the end of `data`.
+#[inline(always)]
+pub fn count_vertices_at_or_below(data: &[u32], start: usize, len: usize, key: u32) -> usize {
+    let mut lo = start;
+    let mut n = len;
+    while n > WINDOW_PAIRS {
+        let q = n / 4;
+        let probe = |k: usize| (data[lo + k * q - 1] <= key) as usize;
+        lo += q * (probe(1) + probe(2) + probe(3));
+        n -= 3 * q;
+    }
+    if data.len() < WINDOW_PAIRS {
+        return lo - start + data[lo..lo + n].iter().filter(|&&e| e <= key).count();
+    }
+    let first = lo.min(data.len() - WINDOW_PAIRS);
+    let window: &[u32; WINDOW_PAIRS] = data[first..first + WINDOW_PAIRS]
+        .try_into()
+        .expect("a window of WINDOW_PAIRS entries");
+    let mask = u64::from(window_mask(window, key)) >> (lo - first);
+    lo - start + (mask.trailing_ones() as usize).min(n)
+}
+
+/// Bit k set where `window[k] <= key` (unsigned): on x86-64 eight
+/// four-wide SSE2 compares (signed, after flipping the sign bits of both
+/// sides, which orders unsigned values as signed ones), elsewhere
+/// [`window_mask_portable`].
+#[inline(always)]
+pub fn window_mask(window: &[u32; WINDOW_PAIRS], key: u32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            __m128i, _mm_cmpgt_epi32, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16,
+            _mm_packs_epi32, _mm_set1_epi32, _mm_xor_si128,
+        };
+        let p = window.as_ptr() as *const __m128i;
+        // SAFETY: SSE2 is part of the x86-64 baseline; the eight unaligned
+        // loads read four u32 each, the 32 entries of `window`.
+        unsafe {
+            let sign = _mm_set1_epi32(i32::MIN);
+            let k = _mm_xor_si128(_mm_set1_epi32(key as i32), sign);
+            // All ones where the entry is above the key.
+            let above =
+                |i: usize| _mm_cmpgt_epi32(_mm_xor_si128(_mm_loadu_si128(p.add(i)), sign), k);
+            // All-ones or zero lanes stay so through the saturating packs.
+            let half = |i: usize| {
+                let lo = _mm_packs_epi32(above(i), above(i + 1));
+                let hi = _mm_packs_epi32(above(i + 2), above(i + 3));
+                _mm_movemask_epi8(_mm_packs_epi16(lo, hi)) as u32
+            };
+            !(half(0) | (half(4) << 16))
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        window_mask_portable(window, key)
+    }
+}
+
+/// [`window_mask`] one entry at a time.
+pub fn window_mask_portable(window: &[u32; WINDOW_PAIRS], key: u32) -> u32 {
+    window
+        .iter()
+        .enumerate()
+        .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::DouglasPeucker;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn window_masks_agree_with_the_portable_compare() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for _ in 0..2000 {
+            let w: [u32; WINDOW_PAIRS] = std::array::from_fn(|_| rng.random());
+            for key in [
+                0,
+                1,
+                i32::MAX as u32,
+                1 << 31,
+                u32::MAX - 1,
+                u32::MAX,
+                rng.random(),
+                w[5],
+            ] {
+                assert_eq!(window_mask(&w, key), window_mask_portable(&w, key));
+            }
+        }
+    }
+
+    #[test]
+    fn counts_agree_with_a_partition_point() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(4);
+        for len in [0usize, 1, 2, 5, 31, 32, 33, 64, 100, 257, 1000] {
+            let mut cdf: Vec<u32> = (0..len).map(|_| rng.random_range(0..2000)).collect();
+            cdf.sort_unstable();
+            let list: Vec<u32> = cdf
+                .iter()
+                .map(|&c| c << 16 | rng.random_range(0..1024))
+                .collect();
+            for pad in [0, WINDOW_PAIRS] {
+                let mut data = vec![7u32; 3];
+                data.extend(&list);
+                data.extend(vec![0u32; pad]);
+                for k in 0..2010u32 {
+                    let expected = cdf.partition_point(|&c| c <= k);
+                    let key = k << 16 | 0xffff;
+                    assert_eq!(
+                        count_vertices_at_or_below(&data, 3, len, key),
+                        expected,
+                        "{len} {k}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn quantised_cdfs_keep_every_positive_segment() {
+        let masses = [1.0, 1e-12, 0.0, 3.0, 1e-9, 0.0];
+        for q in [Q16, Q24] {
+            let c = quantise(&masses, q);
+            assert_eq!((c[0], *c.last().unwrap()), (0, q));
+            for (i, &m) in masses.iter().enumerate() {
+                assert_eq!(c[i + 1] > c[i], m > 0.0, "segment {i}: {c:?}");
+            }
+        }
+    }
+
+    /// A peaked table with zero rows and columns: draws report the density
+    /// `pdf` finds at their point; every texel with mass has a positive
+    /// density; the density integrates to 1.
+    #[test]
+    fn packed_tables_are_exact_and_cover_the_support() {
+        let (nx, ny) = (64, 32);
+        let values: Vec<f32> = (0..nx * ny)
+            .map(|i| {
+                let (k, j) = (i % nx, i / nx);
+                if j == 3 || k == 40 {
+                    0.0
+                } else if (k, j) == (10, 20) {
+                    1e4
+                } else {
+                    1.0 + (k as f32 * 0.3).sin().abs() + 1e-6 * j as f32
+                }
+            })
+            .collect();
+        let a =
+            AdaptiveCdf2D::from_values(&values, nx, ny, &DouglasPeucker::vertical(), 1e-3).unwrap();
+        let d = PackedEnvCdf2D::from_adaptive(&a, &values, nx, ny).unwrap();
+        let mut integral = 0.0f64;
+        for j in 0..ny {
+            for k in 0..nx {
+                let c = Vec2::new((k as f32 + 0.5) / nx as f32, (j as f32 + 0.5) / ny as f32);
+                let p = d.pdf(c);
+                // Zero texels inside a segment with mass share its density.
+                assert!(p > 0.0 || values[j * nx + k] == 0.0, "texel {k},{j}");
+                integral += p as f64 / (nx * ny) as f64;
+            }
+        }
+        assert!((integral - 1.0).abs() < 1e-5, "{integral}");
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for _ in 0..20_000 {
+            let u = Vec2::new(rng.random(), rng.random());
+            let s = d.sample(u);
+            assert!((0.0..1.0).contains(&s.p.x) && (0.0..1.0).contains(&s.p.y));
+            // n_x a power of two: the draw's own point finds its segment.
+            assert_eq!(s.pdf, d.pdf(s.p), "{u:?} -> {s:?}");
+            assert!(s.pdf > 0.0);
+            let back = d.invert(s.p);
+            assert!((back - u).abs().max_element() < 1e-3, "{u:?} -> {back:?}");
+        }
+        assert!(d.storage_bytes() < a.storage_bytes());
+        assert!((d.integral() - a.integral()).abs() < 1e-9 * a.integral());
+    }
+
+    #[test]
+    fn an_empty_table_is_uniform_with_no_integral() {
+        let values = vec![0.0f32; 8 * 4];
+        let a =
+            AdaptiveCdf2D::from_values(&values, 8, 4, &DouglasPeucker::vertical(), 1e-3).unwrap();
+        let d = PackedEnvCdf2D::from_adaptive(&a, &values, 8, 4).unwrap();
+        assert_eq!(d.integral(), 0.0);
+        let s = d.sample(Vec2::new(0.3, 0.6));
+        assert!((s.pdf - 1.0).abs() < 1e-6, "{s:?}");
+        assert_eq!(d.pdf(s.p), s.pdf);
+    }
+}
