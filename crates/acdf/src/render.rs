@@ -245,6 +245,7 @@ pub struct Geometry {
 }
 
 impl Geometry {
+    #[inline]
     fn sphere_t(o: Vec3, d: Vec3) -> Option<f32> {
         let b = o.dot(d);
         let c = o.length_squared() - SPHERE_RADIUS * SPHERE_RADIUS;
@@ -256,6 +257,7 @@ impl Geometry {
         [-b - s, -b + s].into_iter().find(|&t| t > EPSILON)
     }
 
+    #[inline]
     fn plane_t(&self, o: Vec3, d: Vec3) -> Option<f32> {
         if !self.plane || d.z >= 0.0 {
             return None;
@@ -266,6 +268,7 @@ impl Geometry {
     }
 
     /// The first surface along the ray from `o` in the unit direction `d`.
+    #[inline]
     pub fn trace(&self, o: Vec3, d: Vec3) -> Hit {
         let ts = Self::sphere_t(o, d);
         let tp = self.plane_t(o, d);
@@ -282,6 +285,7 @@ impl Geometry {
 
     /// Whether the environment is visible from the surface point `x` of
     /// normal `n` in the unit direction `d`.
+    #[inline]
     pub fn visible(&self, x: Vec3, n: Vec3, d: Vec3) -> bool {
         let o = x + EPSILON * n;
         Self::sphere_t(o, d).is_none() && self.plane_t(o, d).is_none()
@@ -345,6 +349,7 @@ impl Shader<'_> {
     /// One estimate of the radiance arriving at the camera along the ray
     /// from `o` in the unit direction `d`, with the uniform numbers of
     /// `rng`. Finite and non-negative.
+    #[inline(always)]
     pub fn radiance(&self, o: Vec3, d: Vec3, rng: &mut impl Rng) -> Rgb {
         let (x, n, surface, on_sphere) = match self.geometry.trace(o, d) {
             Hit::Sky => return self.light.radiance(d),
@@ -404,6 +409,7 @@ impl Shader<'_> {
     }
 
     /// The estimate of a direction drawn by the BRDF sampler from `u`.
+    #[inline(always)]
     fn brdf_draw(&self, at: &ShadingPoint, u: Vec2, weighting: Weighting) -> Rgb {
         let Some(s) = at.surface.sampler.sample(at.wo, u) else {
             return Rgb::ZERO;
@@ -412,6 +418,11 @@ impl Shader<'_> {
             return Rgb::ZERO;
         }
         let wi = at.frame.to_world(s.wi);
+        // The shadow test before the other sampler's density: it is the
+        // cheaper of the two, and an occluded direction needs neither.
+        if !self.visible(at, wi) {
+            return Rgb::ZERO;
+        }
         let (w, pdf) = match weighting {
             Weighting::Single => (1.0, s.pdf),
             Weighting::Heuristic(h) => (h.weight(s.pdf, self.light.pdf(Some(at.n), wi)), s.pdf),
@@ -424,7 +435,7 @@ impl Shader<'_> {
                 (1.0, mixture_pdf(c, s.pdf, p_l))
             }
         };
-        if !(w > 0.0 && pdf > 0.0 && self.visible(at, wi)) {
+        if !(w > 0.0 && pdf > 0.0) {
             return Rgb::ZERO;
         }
         let f = at.surface.brdf.eval(at.wo, s.wi);
@@ -433,12 +444,13 @@ impl Shader<'_> {
 
     /// The estimate of a direction drawn by the environment sampler from
     /// `u`; 0 below the geometric horizon.
+    #[inline(always)]
     fn light_draw(&self, at: &ShadingPoint, u: Vec2, weighting: Weighting) -> Rgb {
         let Some(s) = self.light.sample(Some(at.n), u) else {
             return Rgb::ZERO;
         };
         let wi = at.frame.to_local(s.dir);
-        if !(s.pdf > 0.0 && s.pdf.is_finite() && wi.z > 0.0) {
+        if !(s.pdf > 0.0 && s.pdf.is_finite() && wi.z > 0.0 && self.visible(at, s.dir)) {
             return Rgb::ZERO;
         }
         let (w, pdf) = match weighting {
@@ -453,7 +465,7 @@ impl Shader<'_> {
                 (1.0, mixture_pdf(c, p_f, s.pdf))
             }
         };
-        if !(w > 0.0 && pdf > 0.0 && self.visible(at, s.dir)) {
+        if !(w > 0.0 && pdf > 0.0) {
             return Rgb::ZERO;
         }
         let f = at.surface.brdf.eval(at.wo, wi);
