@@ -69,8 +69,9 @@ pub struct Args {
     /// always, instead scales the RMSE at --spp to S seconds (1 without
     /// --seconds) of one thread by each strategy's CPU time per camera
     /// sample, the fastest of --timing-repeats passes on one thread:
-    /// RMSE_at_spp * sqrt(spp * pixels * t_sample / S). It moves far less
-    /// with the machine's load than the wall-clock table.
+    /// RMSE_at_spp * sqrt(spp * pixels * t_sample / S). A thread that waits
+    /// for a core does not advance its CPU clock, so it depends less on the
+    /// machine's load than the wall-clock table.
     #[arg(long, value_name = "S")]
     seconds: Option<f64>,
     /// Timed passes (at least 8192 camera samples each) of the CPU time per
