@@ -80,15 +80,42 @@ pub enum Strategy {
     Balance,
     /// One direction from each, weighted by the power heuristic (β = 2).
     Power,
+    /// One direction per camera sample, from the BRDF sampler with
+    /// probability c ([`Shader::mis_fraction`]) and from the environment
+    /// sampler otherwise, divided by the mixture density c p_f + (1 − c)
+    /// p_l ([`mixture_pdf`]): Veach's one-sample model with the balance
+    /// heuristic. One draw, one BRDF evaluation and one shadow ray, plus
+    /// the other sampler's density.
+    OneSample,
+}
+
+/// The probability with which [`Strategy::OneSample`] draws from the BRDF
+/// sampler unless told otherwise.
+pub const DEFAULT_MIS_FRACTION: f32 = 0.5;
+
+/// The density of the one-sample mixture that draws from a density `p_f`
+/// with probability `c` and from `p_l` otherwise: c p_f + (1 − c) p_l. 0
+/// when `c` is not in [0, 1] or a density is not finite and non-negative
+/// (the sample is then dropped). Where the technique that drew a direction
+/// has a positive density and a positive probability, the mixture density
+/// is positive, so f L cos / mixture_pdf is an unbiased estimate wherever
+/// either technique covers the integrand.
+pub fn mixture_pdf(c: f32, p_f: f32, p_l: f32) -> f32 {
+    let ok = |p: f32| p.is_finite() && p >= 0.0;
+    if !((0.0..=1.0).contains(&c) && ok(p_f) && ok(p_l)) {
+        return 0.0;
+    }
+    c * p_f + (1.0 - c) * p_l
 }
 
 impl Strategy {
     /// Every strategy, in the order of tables.
-    pub const ALL: [Strategy; 4] = [
+    pub const ALL: [Strategy; 5] = [
         Strategy::Brdf,
         Strategy::Light,
         Strategy::Balance,
         Strategy::Power,
+        Strategy::OneSample,
     ];
 
     /// The name on the command line.
@@ -98,6 +125,7 @@ impl Strategy {
             Strategy::Light => "light",
             Strategy::Balance => "mis-balance",
             Strategy::Power => "mis-power",
+            Strategy::OneSample => "mis-one-sample",
         }
     }
 
@@ -106,16 +134,26 @@ impl Strategy {
         Strategy::ALL.into_iter().find(|s| s.name() == name)
     }
 
-    /// Whether it draws from both samplers.
+    /// Every name, comma-separated, in the order of [`Strategy::ALL`].
+    pub fn all_names() -> String {
+        Strategy::ALL.map(Strategy::name).join(",")
+    }
+
+    /// Whether it combines both samplers (and so draws from the MIS
+    /// partner of the environment).
     pub fn is_mis(self) -> bool {
-        matches!(self, Strategy::Balance | Strategy::Power)
+        matches!(
+            self,
+            Strategy::Balance | Strategy::Power | Strategy::OneSample
+        )
     }
 
     /// The weight of a direction drawn by the technique of density `own`
     /// when the other technique has density `other` there: p/(p + q) for
-    /// the balance heuristic, p²/(p² + q²) for the power heuristic, 1 for
-    /// the single-technique strategies. 0 when both densities are 0 or a
-    /// density is not finite and non-negative. For the MIS strategies,
+    /// the balance heuristic (and for the one-sample strategy, whose
+    /// weight this is at c = 1/2), p²/(p² + q²) for the power heuristic, 1
+    /// for the single-technique strategies. 0 when both densities are 0 or
+    /// a density is not finite and non-negative. For the MIS strategies,
     /// `weight(a, b) + weight(b, a) = 1` whenever a + b > 0.
     pub fn weight(self, own: f32, other: f32) -> f32 {
         let ok = |p: f32| p.is_finite() && p >= 0.0;
@@ -124,7 +162,7 @@ impl Strategy {
         }
         let (a, b) = match self {
             Strategy::Brdf | Strategy::Light => return 1.0,
-            Strategy::Balance => (own as f64, other as f64),
+            Strategy::Balance | Strategy::OneSample => (own as f64, other as f64),
             Strategy::Power => ((own as f64).powi(2), (other as f64).powi(2)),
         };
         if a + b > 0.0 {
@@ -207,6 +245,7 @@ pub struct Geometry {
 }
 
 impl Geometry {
+    #[inline]
     fn sphere_t(o: Vec3, d: Vec3) -> Option<f32> {
         let b = o.dot(d);
         let c = o.length_squared() - SPHERE_RADIUS * SPHERE_RADIUS;
@@ -218,6 +257,7 @@ impl Geometry {
         [-b - s, -b + s].into_iter().find(|&t| t > EPSILON)
     }
 
+    #[inline]
     fn plane_t(&self, o: Vec3, d: Vec3) -> Option<f32> {
         if !self.plane || d.z >= 0.0 {
             return None;
@@ -228,6 +268,7 @@ impl Geometry {
     }
 
     /// The first surface along the ray from `o` in the unit direction `d`.
+    #[inline]
     pub fn trace(&self, o: Vec3, d: Vec3) -> Hit {
         let ts = Self::sphere_t(o, d);
         let tp = self.plane_t(o, d);
@@ -244,6 +285,7 @@ impl Geometry {
 
     /// Whether the environment is visible from the surface point `x` of
     /// normal `n` in the unit direction `d`.
+    #[inline]
     pub fn visible(&self, x: Vec3, n: Vec3, d: Vec3) -> bool {
         let o = x + EPSILON * n;
         Self::sphere_t(o, d).is_none() && self.plane_t(o, d).is_none()
@@ -272,65 +314,216 @@ pub struct Shader<'a> {
     pub light: &'a dyn Light,
     /// The strategy.
     pub strategy: Strategy,
+    /// The probability c with which [`Strategy::OneSample`] draws from the
+    /// BRDF sampler, in [0, 1] (0 is light sampling, 1 BRDF sampling; a
+    /// value outside [0, 1] adds 0); unused by the other strategies.
+    pub mis_fraction: f32,
+}
+
+/// How a direction's estimate is weighted.
+#[derive(Clone, Copy)]
+enum Weighting {
+    /// By 1 / (the density of the technique that drew it).
+    Single,
+    /// By a two-sample heuristic of the two densities, over the drawing
+    /// technique's density.
+    Heuristic(Strategy),
+    /// By 1 / (the one-sample mixture's density), c the BRDF sampler's
+    /// probability.
+    Mixture(f32),
+}
+
+/// A surface point being shaded.
+struct ShadingPoint<'s> {
+    x: Vec3,
+    n: Vec3,
+    frame: Frame,
+    wo: Vec3,
+    surface: Surface<'s>,
+    /// Whether every direction above the geometric horizon sees the
+    /// environment: a point of the (convex) sphere when there is no plane.
+    unoccluded: bool,
 }
 
 impl Shader<'_> {
     /// One estimate of the radiance arriving at the camera along the ray
     /// from `o` in the unit direction `d`, with the uniform numbers of
     /// `rng`. Finite and non-negative.
+    #[inline(always)]
     pub fn radiance(&self, o: Vec3, d: Vec3, rng: &mut impl Rng) -> Rgb {
-        let (x, n, surface) = match self.geometry.trace(o, d) {
+        let (x, n, surface, on_sphere) = match self.geometry.trace(o, d) {
             Hit::Sky => return self.light.radiance(d),
-            Hit::Sphere(x, n) => (x, n, self.sphere),
-            Hit::Plane(x) => (x, Vec3::Z, self.plane),
+            Hit::Sphere(x, n) => (x, n, self.sphere, true),
+            Hit::Plane(x) => (x, Vec3::Z, self.plane, false),
         };
         let frame = Frame::from_z(n);
         let wo = frame.to_local(-d);
         if wo.z <= 0.0 {
             return Rgb::ZERO;
         }
-        let mut sum = Rgb::ZERO;
-        if self.strategy != Strategy::Light {
-            let u = Vec2::new(rng.random(), rng.random());
-            if let Some(s) = surface.sampler.sample(wo, u) {
-                if s.pdf > 0.0 && s.pdf.is_finite() && s.wi.z > 0.0 {
-                    let wi = frame.to_world(s.wi);
-                    let w = if self.strategy.is_mis() {
-                        self.strategy.weight(s.pdf, self.light.pdf(Some(n), wi))
-                    } else {
-                        1.0
-                    };
-                    if w > 0.0 && self.geometry.visible(x, n, wi) {
-                        let f = surface.brdf.eval(wo, s.wi);
-                        sum += f * self.light.radiance(wi) * (w * s.wi.z / s.pdf);
-                    }
+        let at = ShadingPoint {
+            x,
+            n,
+            frame,
+            wo,
+            surface,
+            unoccluded: on_sphere && !self.geometry.plane,
+        };
+        let mut pair = || Vec2::new(rng.random(), rng.random());
+        let sum = match self.strategy {
+            Strategy::Brdf => self.brdf_draw(&at, pair(), Weighting::Single),
+            Strategy::Light => self.light_draw(&at, pair(), Weighting::Single),
+            Strategy::Balance | Strategy::Power => {
+                let h = Weighting::Heuristic(self.strategy);
+                let from_brdf = self.brdf_draw(&at, pair(), h);
+                from_brdf + self.light_draw(&at, pair(), h)
+            }
+            Strategy::OneSample => {
+                // One uniform pair: its first number picks the technique
+                // and is stretched back to [0, 1), so that c = 1 and c = 0
+                // use the numbers BRDF and light sampling use.
+                let c = self.mis_fraction;
+                let u = pair();
+                if u.x < c {
+                    self.brdf_draw(&at, Vec2::new(u.x / c, u.y), Weighting::Mixture(c))
+                } else if c < 1.0 {
+                    let v = Vec2::new((u.x - c) / (1.0 - c), u.y);
+                    self.light_draw(&at, v, Weighting::Mixture(c))
+                } else {
+                    Rgb::ZERO
                 }
             }
-        }
-        if self.strategy != Strategy::Brdf {
-            let u = Vec2::new(rng.random(), rng.random());
-            if let Some(s) = self.light.sample(Some(n), u) {
-                let wi = frame.to_local(s.dir);
-                if s.pdf > 0.0 && s.pdf.is_finite() && wi.z > 0.0 {
-                    let w = if self.strategy.is_mis() {
-                        self.strategy.weight(s.pdf, surface.sampler.pdf(wo, wi))
-                    } else {
-                        1.0
-                    };
-                    if w > 0.0 && self.geometry.visible(x, n, s.dir) {
-                        let f = surface.brdf.eval(wo, wi);
-                        sum += f * s.radiance * (w * wi.z / s.pdf);
-                    }
-                }
-            }
-        }
+        };
         if sum.is_finite() {
             sum.max(Rgb::ZERO)
         } else {
             Rgb::ZERO
         }
     }
+
+    /// Whether the environment is seen from `at` in the world direction
+    /// `wi` above its geometric horizon.
+    #[inline]
+    fn visible(&self, at: &ShadingPoint, wi: Vec3) -> bool {
+        at.unoccluded || self.geometry.visible(at.x, at.n, wi)
+    }
+
+    /// The estimate of a direction drawn by the BRDF sampler from `u`.
+    #[inline(always)]
+    fn brdf_draw(&self, at: &ShadingPoint, u: Vec2, weighting: Weighting) -> Rgb {
+        let Some(s) = at.surface.sampler.sample(at.wo, u) else {
+            return Rgb::ZERO;
+        };
+        if !(s.pdf > 0.0 && s.pdf.is_finite() && s.wi.z > 0.0) {
+            return Rgb::ZERO;
+        }
+        let wi = at.frame.to_world(s.wi);
+        // The shadow test before the other sampler's density: it is the
+        // cheaper of the two, and an occluded direction needs neither.
+        if !self.visible(at, wi) {
+            return Rgb::ZERO;
+        }
+        let (w, pdf) = match weighting {
+            Weighting::Single => (1.0, s.pdf),
+            Weighting::Heuristic(h) => (h.weight(s.pdf, self.light.pdf(Some(at.n), wi)), s.pdf),
+            Weighting::Mixture(c) => {
+                let p_l = if c < 1.0 {
+                    self.light.pdf(Some(at.n), wi)
+                } else {
+                    0.0
+                };
+                (1.0, mixture_pdf(c, s.pdf, p_l))
+            }
+        };
+        if !(w > 0.0 && pdf > 0.0) {
+            return Rgb::ZERO;
+        }
+        let f = at.surface.brdf.eval(at.wo, s.wi);
+        f * self.light.radiance(wi) * (w * s.wi.z / pdf)
+    }
+
+    /// The estimate of a direction drawn by the environment sampler from
+    /// `u`; 0 below the geometric horizon.
+    #[inline(always)]
+    fn light_draw(&self, at: &ShadingPoint, u: Vec2, weighting: Weighting) -> Rgb {
+        let Some(s) = self.light.sample(Some(at.n), u) else {
+            return Rgb::ZERO;
+        };
+        let wi = at.frame.to_local(s.dir);
+        if !(s.pdf > 0.0 && s.pdf.is_finite() && wi.z > 0.0 && self.visible(at, s.dir)) {
+            return Rgb::ZERO;
+        }
+        let (w, pdf) = match weighting {
+            Weighting::Single => (1.0, s.pdf),
+            Weighting::Heuristic(h) => (h.weight(s.pdf, at.surface.sampler.pdf(at.wo, wi)), s.pdf),
+            Weighting::Mixture(c) => {
+                let p_f = if c > 0.0 {
+                    at.surface.sampler.pdf(at.wo, wi)
+                } else {
+                    0.0
+                };
+                (1.0, mixture_pdf(c, p_f, s.pdf))
+            }
+        };
+        if !(w > 0.0 && pdf > 0.0) {
+            return Rgb::ZERO;
+        }
+        let f = at.surface.brdf.eval(at.wo, wi);
+        f * s.radiance * (w * wi.z / pdf)
+    }
+
+    /// CPU seconds one camera sample takes on the calling thread: the
+    /// fastest of `repeats` timed passes (per-thread CPU clock,
+    /// [`thread_seconds`](crate::efficiency::thread_seconds)), each of
+    /// one sample per pixel of a `width` × `height` image (repeated to at
+    /// least [`TIMING_SAMPLES`] samples) with the same uniform numbers. The
+    /// fastest of short repeats is what the code costs when nothing else
+    /// takes the core or the cache; a thread that waits for a core does not
+    /// advance its clock, so the figure moves little with the machine's
+    /// load. What an equal-time comparison scales by.
+    pub fn seconds_per_camera_sample(
+        &self,
+        camera: &Camera,
+        (width, height): (usize, usize),
+        seed: u64,
+        repeats: usize,
+    ) -> f64 {
+        let (width, height) = (width.max(1), height.max(1));
+        let pixels = width * height;
+        let rounds = TIMING_SAMPLES.div_ceil(pixels);
+        let aspect = width as f32 / height as f32;
+        let mut best = f64::INFINITY;
+        for _ in 0..repeats.max(1) {
+            let mut acc = Rgb::ZERO;
+            let start = crate::efficiency::thread_seconds();
+            for round in 0..rounds {
+                for pixel in 0..pixels {
+                    let mut rng = rand_pcg::Pcg64::seed_from_u64(pixel_seed(
+                        seed ^ 0x7133_0000,
+                        round as u64,
+                        pixel,
+                    ));
+                    let (row, col) = (pixel / width, pixel % width);
+                    let p = Vec2::new(
+                        (col as f32 + rng.random::<f32>()) / width as f32,
+                        (row as f32 + rng.random::<f32>()) / height as f32,
+                    );
+                    let d = camera.direction(p, aspect);
+                    acc += self.radiance(camera.eye, d, &mut rng);
+                }
+            }
+            let t = crate::efficiency::thread_seconds() - start;
+            std::hint::black_box(acc);
+            best = best.min(t);
+        }
+        best / (rounds * pixels) as f64
+    }
 }
+
+/// Camera samples in one timed pass of
+/// [`Shader::seconds_per_camera_sample`], at least (a 64 × 64 image is
+/// covered twice): enough that a pass lasts milliseconds.
+pub const TIMING_SAMPLES: usize = 8192;
 
 /// A linear-radiance image that accumulates samples: per pixel, the sum
 /// and the sum of squares of the samples.
@@ -701,7 +894,7 @@ mod tests {
     /// the exact radiance: |pooled z| < 4 (two-sided significance 6e-5),
     /// with the uniform sampler as light-only sampler and the compensated
     /// one as MIS partner. A partner that misreports its density by 2x is
-    /// rejected (|z| > 4) by both MIS strategies.
+    /// rejected (|z| > 4) by every MIS strategy.
     #[test]
     fn every_strategy_is_unbiased_and_a_wrong_pdf_is_caught() {
         let map = split_map();
@@ -728,6 +921,7 @@ mod tests {
             plane: surface,
             light,
             strategy,
+            mis_fraction: DEFAULT_MIS_FRACTION,
         };
         let light: &'static dyn Light = Box::leak(Box::new(light));
         let comp: &'static dyn Light = Box::leak(Box::new(comp));
@@ -737,12 +931,13 @@ mod tests {
             (Strategy::Light, light),
             (Strategy::Balance, comp),
             (Strategy::Power, comp),
+            (Strategy::OneSample, comp),
         ] {
             let z = pooled_z(&shader(strategy, l), 400);
             eprintln!("{strategy:?}: pooled z {z:.2}");
             assert!(z.abs() < 4.0, "{strategy:?}: pooled z {z}");
         }
-        for strategy in [Strategy::Balance, Strategy::Power] {
+        for strategy in [Strategy::Balance, Strategy::Power, Strategy::OneSample] {
             let z = pooled_z(&shader(strategy, wrong), 400);
             eprintln!("{strategy:?}, light pdf doubled: pooled z {z:.2}");
             assert!(z.abs() > 4.0, "{strategy:?} with a wrong pdf: pooled z {z}");
@@ -798,21 +993,21 @@ mod tests {
         };
         let adaptive = crate::registry::make_sampler("adaptive", &m, &Default::default()).unwrap();
         let o = EnvSamplerOptions::default();
-        let cases: [(&str, Strategy, &dyn BxdfSampler); 6] = [
-            ("adaptive", Strategy::Light, &acdf_cosine::CosineSampler),
-            ("oriented", Strategy::Light, &acdf_cosine::CosineSampler),
-            ("uniform-comp", Strategy::Power, &acdf_cosine::CosineSampler),
-            (
-                "adaptive-comp",
-                Strategy::Power,
-                &acdf_cosine::CosineSampler,
-            ),
-            ("adaptive-comp", Strategy::Balance, &adaptive),
-            ("adaptive-comp", Strategy::Power, &adaptive),
+        let cosine: &dyn BxdfSampler = &acdf_cosine::CosineSampler;
+        let half = DEFAULT_MIS_FRACTION;
+        let cases: [(&str, Strategy, &dyn BxdfSampler, f32); 10] = [
+            ("adaptive", Strategy::Light, cosine, half),
+            ("oriented", Strategy::Light, cosine, half),
+            ("uniform-comp", Strategy::Power, cosine, half),
+            ("adaptive-comp", Strategy::Power, cosine, half),
+            ("adaptive-comp", Strategy::Balance, &adaptive, half),
+            ("adaptive-comp", Strategy::Power, &adaptive, half),
+            ("uniform-comp", Strategy::OneSample, cosine, half),
+            ("adaptive-comp", Strategy::OneSample, &adaptive, half),
+            ("adaptive-comp", Strategy::OneSample, &adaptive, 0.2),
+            ("oriented", Strategy::OneSample, &adaptive, 0.8),
         ];
-        for (env, strategy, sampler) in cases {
-            let light =
-                EnvironmentLight::new(map.clone(), make_env_sampler(env, &map, &o).unwrap());
+        let z_of = |light: &dyn Light, strategy, sampler: &dyn BxdfSampler, c| {
             let surface = Surface {
                 brdf: &lambert,
                 sampler,
@@ -821,17 +1016,145 @@ mod tests {
                 geometry: Geometry { plane: false },
                 sphere: surface,
                 plane: surface,
-                light: &light,
+                light,
                 strategy,
+                mis_fraction: c,
             };
-            let z = pooled_z_against(&shader, 400, |n| ALBEDO * irradiance_over_pi(n));
-            eprintln!("{env} {strategy:?} {}: pooled z {z:.2}", sampler.name());
+            pooled_z_against(&shader, 400, |n| ALBEDO * irradiance_over_pi(n))
+        };
+        for (env, strategy, sampler, c) in cases {
+            let light =
+                EnvironmentLight::new(map.clone(), make_env_sampler(env, &map, &o).unwrap());
+            let z = z_of(&light, strategy, sampler, c);
+            eprintln!(
+                "{env} {strategy:?} {} c {c}: pooled z {z:.2}",
+                sampler.name()
+            );
             assert!(
                 z.abs() < 4.0,
-                "{env} {strategy:?} {}: pooled z {z}",
+                "{env} {strategy:?} {} c {c}: pooled z {z}",
                 sampler.name()
             );
         }
+        // A partner that reports twice its density is rejected.
+        for env in ["adaptive-comp", "oriented"] {
+            let wrong = WrongPdf(EnvironmentLight::new(
+                map.clone(),
+                make_env_sampler(env, &map, &o).unwrap(),
+            ));
+            let z = z_of(&wrong, Strategy::OneSample, &adaptive, half);
+            eprintln!("{env} OneSample, light pdf doubled: pooled z {z:.2}");
+            assert!(z.abs() > 4.0, "{env} with a wrong pdf: pooled z {z}");
+        }
+    }
+
+    /// The one-sample strategy at c = 1 is BRDF sampling and at c = 0 light
+    /// sampling, value for value: the same estimates from the same uniform
+    /// numbers (it stretches its selecting number back to [0, 1)).
+    #[test]
+    fn one_sample_at_c_0_and_1_is_the_single_strategy() {
+        let map = split_map();
+        let lambert = Lambert::new("l", Rgb::splat(ALBEDO)).unwrap();
+        let light = EnvironmentLight::new(
+            map.clone(),
+            uniform_env_sampler(&map, TableKind::Luminance).unwrap(),
+        );
+        let surface = Surface {
+            brdf: &lambert,
+            sampler: &acdf_cosine::CosineSampler,
+        };
+        for plane in [false, true] {
+            let shader = |strategy, mis_fraction| Shader {
+                geometry: Geometry { plane },
+                sphere: surface,
+                plane: surface,
+                light: &light,
+                strategy,
+                mis_fraction,
+            };
+            let camera = Camera::default();
+            let mut nonzero = 0;
+            for (single, c) in [(Strategy::Brdf, 1.0), (Strategy::Light, 0.0)] {
+                let (a, b) = (shader(single, 0.5), shader(Strategy::OneSample, c));
+                for k in 0..2000u64 {
+                    let p = Vec2::new((k % 40) as f32 / 40.0, (k / 40) as f32 / 50.0);
+                    let d = camera.direction(p, 1.0);
+                    let mut r1 = rand_pcg::Pcg64::seed_from_u64(k);
+                    let mut r2 = rand_pcg::Pcg64::seed_from_u64(k);
+                    let (x, y) = (
+                        a.radiance(camera.eye, d, &mut r1),
+                        b.radiance(camera.eye, d, &mut r2),
+                    );
+                    assert_eq!(
+                        x.to_array().map(f32::to_bits),
+                        y.to_array().map(f32::to_bits)
+                    );
+                    nonzero += usize::from(x.x > 0.0 && x.x != SKY && x.x != GROUND);
+                }
+            }
+            assert!(nonzero > 500, "{nonzero}");
+        }
+    }
+
+    /// The one-sample weights sum to one in expectation: on a domain of 64
+    /// cells of measure 1, two densities (the light's zero on a third of
+    /// the cells, as a compensated table is) and an integrand F, the exact
+    /// expectation of the estimate, Σ_i c_i Σ_x p_i(x) F(x) /
+    /// mixture_pdf(x), is Σ F wherever the drawing densities cover F, for
+    /// c from 0.05 to 0.95; at c = 1 it loses the cells p_f misses.
+    #[test]
+    fn one_sample_weights_sum_to_one_in_expectation() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let n = 64;
+        let normalise = |v: Vec<f64>| {
+            let s: f64 = v.iter().sum();
+            v.into_iter().map(|x| (x / s) as f32).collect::<Vec<f32>>()
+        };
+        let p_f = normalise((0..n).map(|_| rng.random_range(0.01..1.0)).collect());
+        let p_l = normalise(
+            (0..n)
+                .map(|k| {
+                    if k % 3 == 0 {
+                        0.0
+                    } else {
+                        rng.random_range(0.0..5.0)
+                    }
+                })
+                .collect(),
+        );
+        let f: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..2.0)).collect();
+        let total: f64 = f.iter().sum();
+        let expectation = |c: f32, p_f: &[f32]| {
+            (0..n)
+                .map(|x| {
+                    let q = mixture_pdf(c, p_f[x], p_l[x]) as f64;
+                    if q > 0.0 {
+                        (c as f64 * p_f[x] as f64 + (1.0 - c as f64) * p_l[x] as f64) * f[x] / q
+                    } else {
+                        0.0
+                    }
+                })
+                .sum::<f64>()
+        };
+        for c in [0.05, 0.3, 0.5, 0.7, 0.95] {
+            let e = expectation(c, &p_f);
+            assert!(
+                (e - total).abs() < 1e-5 * total,
+                "c {c}: {e} against {total}"
+            );
+        }
+        // At c = 1 only the BRDF sampler draws: a cell it misses is lost.
+        let mut holes = p_f.clone();
+        holes[1] = 0.0;
+        let e = expectation(1.0, &holes);
+        assert!((e - (total - f[1])).abs() < 1e-5 * total);
+        assert!(expectation(0.5, &holes) > total - 1e-5 * total);
+        for (c, a, b) in [(1.5, 1.0, 1.0), (-0.1, 1.0, 1.0), (f32::NAN, 1.0, 1.0)] {
+            assert_eq!(mixture_pdf(c, a, b), 0.0);
+        }
+        assert_eq!(mixture_pdf(0.5, f32::NAN, 1.0), 0.0);
+        assert_eq!(mixture_pdf(0.5, 1.0, f32::INFINITY), 0.0);
+        assert_eq!(mixture_pdf(0.25, 4.0, 8.0), 7.0);
     }
 
     /// The plane shadowed by the sphere: a plane point right below the
@@ -864,7 +1187,7 @@ mod tests {
     #[test]
     fn mis_weights_sum_to_one() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
-        for strategy in [Strategy::Balance, Strategy::Power] {
+        for strategy in [Strategy::Balance, Strategy::Power, Strategy::OneSample] {
             for _ in 0..10_000 {
                 let a = 10f32.powf(rng.random_range(-30.0..30.0));
                 let b = if rng.random::<f32>() < 0.1 {

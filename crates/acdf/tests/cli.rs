@@ -766,15 +766,49 @@ fn render_writes_every_strategy_and_caches_the_reference() {
     let names: Vec<&str> = rows.iter().map(|r| r[0]).collect();
     assert_eq!(
         names,
-        ["brdf", "light", "mis-balance", "mis-power"],
+        [
+            "brdf",
+            "light",
+            "mis-balance",
+            "mis-power",
+            "mis-one-sample"
+        ],
         "{out}"
     );
     assert_eq!(rows[2][1], "uniform+uniform-comp");
+    assert_eq!(rows[4][1], "uniform+uniform-comp c=0.5");
     for r in &rows {
         let rmse: f64 = r[4].parse().unwrap();
         assert!(rmse.is_finite() && rmse > 0.0, "{r:?}");
     }
-    for name in ["reference", "brdf", "light", "mis-balance", "mis-power"] {
+    // The modelled equal-CPU-time table: the RMSE at 2 spp scaled by the
+    // samples one thread renders in 1 s.
+    let cpu = render_rows(&out, "equal CPU time");
+    assert_eq!(cpu.len(), 5, "{out}");
+    for (r, e) in cpu.iter().zip(&rows) {
+        let (spp, rmse, rate): (f64, f64, f64) = (
+            r[2].parse().unwrap(),
+            r[4].parse().unwrap(),
+            r[6].parse().unwrap(),
+        );
+        let at_spp: f64 = e[4].parse().unwrap();
+        assert!(
+            rate > 1e3 && (spp - rate / (24.0 * 16.0)).abs() < 1e-3 * spp + 0.1,
+            "{r:?}"
+        );
+        assert!(
+            (rmse - at_spp * (2.0 / spp).sqrt()).abs() < 1e-3 * rmse + 2e-6,
+            "{r:?}"
+        );
+    }
+    for name in [
+        "reference",
+        "brdf",
+        "light",
+        "mis-balance",
+        "mis-power",
+        "mis-one-sample",
+    ] {
         let img = image::open(dir.path().join(format!("blue-metallic-paint-{name}.png"))).unwrap();
         assert_eq!((img.width(), img.height()), (24, 16), "{name}");
         if name != "reference" {
@@ -784,7 +818,7 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         }
     }
     let side = image::open(dir.path().join("blue-metallic-paint-side-by-side.png")).unwrap();
-    assert_eq!(side.width(), 5 * 24 + 4 * 4);
+    assert_eq!(side.width(), 6 * 24 + 5 * 4);
     assert!(side.height() > 2 * 16);
     let svg =
         std::fs::read_to_string(dir.path().join("blue-metallic-paint-convergence.svg")).unwrap();
@@ -833,7 +867,19 @@ fn render_equal_time_runs_at_least_one_pass() {
         "--out",
         dir.path().to_str().unwrap(),
     ]);
-    assert_one_line_error(&o, "mis-balance");
+    assert_one_line_error(&o, "mis-one-sample");
+    for c in ["1.5", "-0.1", "NaN"] {
+        let c = format!("--mis-fraction={c}");
+        let o = acdf(&[
+            "render",
+            "--material",
+            "builtin:lambert",
+            &c,
+            "--out",
+            dir.path().to_str().unwrap(),
+        ]);
+        assert_one_line_error(&o, "mis-fraction");
+    }
 }
 
 #[test]

@@ -17,7 +17,7 @@ use acdf::plot::{Figure, Panel, Series, Style};
 use acdf::registry::{make_sampler, sampler_help, AnySampler, SamplerOps};
 use acdf::render::{
     render, render_memory_estimate, Budget, Camera, Film, Geometry, Progress, Rendered, Shader,
-    Strategy, Surface, PLANE_ALBEDO,
+    Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO,
 };
 use acdf_core::{BxdfSampler, Rgb, SphereSampler, Vec3};
 use acdf_materials::analytic::Lambert;
@@ -47,13 +47,14 @@ pub struct Args {
     /// adaptive-comp:S for adaptive:S, the sampler itself otherwise).
     #[arg(long, value_name = "NAME")]
     mis_env_sampler: Option<String>,
-    /// Strategies, comma-separated: brdf, light, mis-balance, mis-power.
-    #[arg(
-        long,
-        value_name = "LIST",
-        default_value = "brdf,light,mis-balance,mis-power"
-    )]
+    // The help names every strategy, from `Strategy::ALL`.
+    #[arg(long, value_name = "LIST", default_value_t = Strategy::all_names(), help = strategies_help())]
     strategies: String,
+    /// The probability c with which mis-one-sample draws from the BRDF
+    /// sampler (the environment sampler otherwise), in [0, 1]; each draw is
+    /// divided by the mixture density c p_brdf + (1 - c) p_light.
+    #[arg(long, value_name = "C", default_value_t = DEFAULT_MIS_FRACTION)]
+    mis_fraction: f32,
     /// Image width in pixels.
     #[arg(long, default_value_t = 128)]
     width: usize,
@@ -63,9 +64,20 @@ pub struct Args {
     /// Samples per pixel of each strategy: the equal-sample table.
     #[arg(long, default_value_t = 16)]
     spp: usize,
-    /// Seconds of rendering per strategy, after --spp: the equal-time table.
+    /// Seconds of rendering per strategy, after --spp: the equal-time table
+    /// (wall clock, on every thread). The equal-CPU-time table, printed
+    /// always, instead scales the RMSE at --spp to S seconds (1 without
+    /// --seconds) of one thread by each strategy's CPU time per camera
+    /// sample, the fastest of --timing-repeats passes on one thread:
+    /// RMSE_at_spp * sqrt(spp * pixels * t_sample / S). A thread that waits
+    /// for a core does not advance its CPU clock, so it depends less on the
+    /// machine's load than the wall-clock table.
     #[arg(long, value_name = "S")]
     seconds: Option<f64>,
+    /// Timed passes (at least 8192 camera samples each) of the CPU time per
+    /// camera sample; the fastest counts.
+    #[arg(long, value_name = "N", default_value_t = 9)]
+    timing_repeats: usize,
     /// Samples per pixel of the reference (MIS with the power heuristic),
     /// computed once and cached in the output directory.
     #[arg(long, default_value_t = 1024)]
@@ -93,6 +105,16 @@ pub struct Args {
     tables: TableArgs,
 }
 
+fn strategies_help() -> String {
+    format!(
+        "Strategies, comma-separated: {}. brdf and light draw from one sampler; \
+         mis-balance and mis-power draw once from each and weigh the two by their heuristic; \
+         mis-one-sample draws once, from the BRDF sampler with probability --mis-fraction, \
+         and divides by the mixture density",
+        Strategy::all_names().replace(',', ", ")
+    )
+}
+
 fn brdf_help() -> String {
     format!(
         "The BRDF sampler of BRDF sampling and of MIS. {}",
@@ -114,6 +136,8 @@ struct Result1 {
     rendered: Rendered,
     rmse_at_spp: f64,
     rmse_last: f64,
+    /// CPU seconds per camera sample on one thread, fastest of the repeats.
+    seconds_per_sample: f64,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -198,6 +222,7 @@ fn run_scene(
             &light
         },
         strategy,
+        mis_fraction: a.mis_fraction,
     };
     let camera = Camera::default();
     let size = (a.width, height);
@@ -206,6 +231,12 @@ fn run_scene(
     let samplers_of = |s: Strategy| match s {
         Strategy::Brdf => a.brdf_sampler.clone(),
         Strategy::Light => light.sampler().name().to_string(),
+        Strategy::OneSample => format!(
+            "{}+{} c={}",
+            a.brdf_sampler,
+            mis_light.sampler().name(),
+            a.mis_fraction
+        ),
         _ => format!("{}+{}", a.brdf_sampler, mis_light.sampler().name()),
     };
 
@@ -269,6 +300,9 @@ fn run_scene(
             |f| pb.set_position((f * 100.0) as u64),
         );
         pb.finish_and_clear();
+        // After the render, so that tables built on first use are built.
+        let seconds_per_sample =
+            shader(strategy).seconds_per_camera_sample(&camera, size, a.seed, a.timing_repeats);
         let rmse_at_spp = r.at_spp.rmse(&reference).unwrap_or(f64::NAN);
         let rmse_last = r.last.rmse(&reference).unwrap_or(f64::NAN);
         results.push(Result1 {
@@ -277,6 +311,7 @@ fn run_scene(
             rendered: r,
             rmse_at_spp,
             rmse_last,
+            seconds_per_sample,
         });
     }
 
@@ -477,6 +512,44 @@ fn print_tables(
             |r| r.rendered.seconds,
         )?;
     }
+    // Equal CPU time, modelled: the RMSE at --spp scaled to `budget`
+    // seconds of one thread (RMSE falls as 1/sqrt(samples)).
+    let budget = a.seconds.unwrap_or(1.0);
+    let spp_in_budget = |r: &Result1| budget / (r.seconds_per_sample * pixels).max(1e-300);
+    let modelled = |r: &Result1| {
+        r.rmse_at_spp * (r.rendered.at_spp.samples_per_pixel() as f64 / spp_in_budget(r)).sqrt()
+    };
+    writeln!(
+        out,
+        "equal CPU time ({budget} s of one thread, modelled: RMSE at {} spp x sqrt(spp x pixels x CPU s per camera sample / {budget}); fastest of {} timed passes)",
+        a.spp,
+        a.timing_repeats.max(1)
+    )?;
+    writeln!(
+        out,
+        "strategy,samplers,spp,seconds,rmse,rmse_vs_best_single,camera_samples_per_s"
+    )?;
+    let best = results
+        .iter()
+        .filter(|r| !r.strategy.is_mis())
+        .map(modelled)
+        .fold(f64::INFINITY, f64::min);
+    for r in results {
+        let rmse = modelled(r);
+        let rel = if best.is_finite() && best > 0.0 {
+            format!("{:.3}", rmse / best)
+        } else {
+            String::new()
+        };
+        writeln!(
+            out,
+            "{},{},{:.1},{budget:.3},{rmse:.6},{rel},{:.4e}",
+            r.strategy.name(),
+            r.samplers,
+            spp_in_budget(r),
+            1.0 / r.seconds_per_sample.max(1e-300)
+        )?;
+    }
     out.flush()?;
     Ok(())
 }
@@ -554,6 +627,13 @@ fn check_sizes(a: &Args) -> Result<usize> {
                 reason: format!("must be a positive number of seconds, at most {MAX_SECONDS:e}"),
             });
         }
+    }
+    if !(0.0..=1.0).contains(&a.mis_fraction) {
+        return Err(Error::InvalidArgument {
+            what: "mis-fraction",
+            value: a.mis_fraction.to_string(),
+            reason: "must be a probability, from 0 to 1".into(),
+        });
     }
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(Error::InvalidArgument {
