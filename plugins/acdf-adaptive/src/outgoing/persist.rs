@@ -3,7 +3,9 @@
 //! that module's).
 //!
 //! The body, in order: the kind `outgoing` (`string`), the layout version
-//! of this body (u32, [`OUTGOING_VERSION`]), the sampler name (`string`,
+//! of this body (u32, [`OUTGOING_VERSION`]; the anisotropic sampler's
+//! layout, [`ANISOTROPIC_VERSION`](super::anisotropic::persist::ANISOTROPIC_VERSION),
+//! is read by [`super::anisotropic::persist`]), the sampler name (`string`,
 //! e.g. `outgoing:chi2`), the simplifier name (`string`), its tolerance
 //! (f64), the θ_o budget (f64), the fine slice count (u32), the material
 //! name (`string`), whether it is isotropic (u8, 1), its fingerprint (u64),
@@ -30,7 +32,7 @@ pub const KIND: &str = "outgoing";
 /// The layout version of the body this build writes and reads.
 pub const OUTGOING_VERSION: u32 = 1;
 
-fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
+pub(crate) fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
     w.length(values.len());
     for &v in values {
         let [a, b] = v.to_le_bytes();
@@ -39,26 +41,32 @@ fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
     }
 }
 
-fn write_u8s(w: &mut ByteWriter, values: &[u8]) {
+pub(crate) fn write_u8s(w: &mut ByteWriter, values: &[u8]) {
     w.length(values.len());
     for &v in values {
         w.u8(v);
     }
 }
 
-fn read_u8s(r: &mut ByteReader<'_>, field: &'static str) -> Result<Vec<u8>, PersistError> {
+pub(crate) fn read_u8s(
+    r: &mut ByteReader<'_>,
+    field: &'static str,
+) -> Result<Vec<u8>, PersistError> {
     let n = r.count(field, 1)?;
     (0..n).map(|_| r.u8(field)).collect()
 }
 
-fn read_u16s(r: &mut ByteReader<'_>, field: &'static str) -> Result<Vec<u16>, PersistError> {
+pub(crate) fn read_u16s(
+    r: &mut ByteReader<'_>,
+    field: &'static str,
+) -> Result<Vec<u16>, PersistError> {
     let n = r.count(field, 2)?;
     (0..n)
         .map(|_| Ok(u16::from_le_bytes([r.u8(field)?, r.u8(field)?])))
         .collect()
 }
 
-fn invalid(field: &'static str, reason: String) -> PersistError {
+pub(crate) fn invalid(field: &'static str, reason: String) -> PersistError {
     PersistError::Invalid { field, reason }
 }
 
