@@ -22,7 +22,8 @@
 //!   ([`OrientedEnvSampler`]);
 //! - [`outgoing`]: [`OutgoingSampler`], slices kept only at the θ_o
 //!   breakpoints a material needs, blended linearly between them, stored
-//!   in 16 bits.
+//!   in 16 bits; for anisotropic materials [`AnisotropicOutgoingSampler`],
+//!   the same on a grid of θ_o and φ_o breakpoints.
 //!
 //! # Tolerances and how the defaults were chosen
 //!
@@ -71,7 +72,7 @@ pub mod simplify;
 
 pub use dist::{AdaptiveCdf1D, AdaptiveCdf2D};
 pub use env::{adaptive_env_sampler, oriented_env_sampler, AdaptiveEnvSampler, OrientedEnvSampler};
-pub use outgoing::{OutgoingBuilder, OutgoingSampler};
+pub use outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
 pub use sampler::{adaptive_sampler, average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 pub use simplify::{
     chi_square_error, perpendicular_error, simplifier_by_name, vertical_error, ChiSquareOptimal,

@@ -133,6 +133,7 @@ impl Brdf for Turned<'_> {
 }
 
 /// The outgoing sampler of an anisotropic material (module documentation).
+#[derive(Clone)]
 pub struct AnisotropicOutgoingSampler {
     brdf: Arc<dyn Brdf>,
     builder: OutgoingBuilder,

@@ -205,27 +205,27 @@ fn hostile_files_are_typed_errors() {
         other => panic!("unexpected {other}"),
     };
     type PersistErrorOf = acdf_tabulated::persist::PersistError;
-    let mut bad = small(Arc::new(Brushed));
+    let mut bad = s.clone();
     bad.phi_breakpoints = vec![0.0, 1.5];
     let e = AnisotropicOutgoingSampler::from_bytes(&bad.to_bytes())
         .err()
         .unwrap();
     assert_eq!(field_of(e), "phi_o breakpoints");
-    let mut bad = small(Arc::new(Brushed));
+    let mut bad = s.clone();
     bad.theta_breakpoints.swap(1, 2);
     let e = AnisotropicOutgoingSampler::from_bytes(&bad.to_bytes())
         .err()
         .unwrap();
     assert_eq!(field_of(e), "theta_o breakpoints");
     // Many φ_o breakpoints, few slices: the slice count overruns the file.
-    let mut bad = small(Arc::new(Brushed));
+    let mut bad = s.clone();
     bad.phi_breakpoints = (0..4000).map(|k| k as f32 / 4000.0).collect();
     let e = AnisotropicOutgoingSampler::from_bytes(&bad.to_bytes())
         .err()
         .unwrap();
     assert_eq!(field_of(e), "slices");
     // A slice whose CDF runs backwards.
-    let mut bad = small(Arc::new(Brushed));
+    let mut bad = s.clone();
     let c = &mut bad.slices[1].marginal_cdf;
     let last = c.len() - 2;
     c.swap(1, last);
