@@ -2,20 +2,23 @@
 //! kept on a tensor grid of θ_o and φ_o breakpoints chosen per material,
 //! and a density that blends the four neighbouring slices bilinearly.
 //!
-//! **Frame.** Every slice measures φ_h from φ_o (the frame of the
-//! isotropic outgoing sampler, [`HalfMap`]): the table of the outgoing
+//! **Frame.** A slice measures φ_h either from φ_o (the frame of the
+//! isotropic outgoing sampler, [`HalfMap`]: the table of the outgoing
 //! direction (θ_o, φ_o) at (x, v) is the material's density at the half
-//! vector (θ_h, φ_o + 2π x). In this frame an isotropic material's slices
-//! do not depend on φ_o at all, the horizon cut-off (wi.z = 0) is the same
-//! for every φ_o, and what remains along φ_o is the material's own
-//! anisotropy; with φ_h absolute (the tabulated samplers' frame for
-//! several φ_o cells) the whole lobe would turn with φ_o and every
-//! material, isotropic ones included, would need φ_o breakpoints.
+//! vector (θ_h, φ_o + 2π x)) or absolutely ([`PhiFrame`]). From φ_o, an
+//! isotropic material's slices do not depend on φ_o at all and the horizon
+//! cut-off (wi.z = 0) is the same for every φ_o, but a lobe fixed on the
+//! surface (an anisotropic density of normals, on which the half vector
+//! already centres the specular peak) turns with φ_o, and keeping it takes
+//! nearly every fine φ_o node; measured absolutely that lobe stays put. So
+//! the builder tabulates an anisotropic material in both frames and keeps
+//! the one whose breakpoints keep fewer slices at the budget; an isotropic
+//! one is tabulated from φ_o only (one φ_o breakpoint, the fewest).
 //!
 //! **Building.** The material is tabulated at `fine` θ_o nodes
 //! u_j = j / (fine - 1) (θ_o = (π/2) u_j², as in the isotropic sampler)
 //! times `fine_phi` φ_o nodes φ_l = 2π l / fine_phi, with [`tabulate_for`]
-//! on the material turned by φ_l. Breakpoints are chosen greedily, as in
+//! (from φ_o: on the material turned by φ_l). Breakpoints are chosen greedily, as in
 //! the isotropic sampler, along each axis: along θ_o the next kept node
 //! is the farthest for which every dropped node of every φ_o column is
 //! reproduced by the linear blend of its two kept neighbours within
@@ -132,12 +135,58 @@ impl Brdf for Turned<'_> {
     }
 }
 
+/// Where a slice measures φ_h from (module documentation, **Frame**).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PhiFrame {
+    /// φ_h from φ_o: an isotropic material's slices do not depend on φ_o.
+    Relative,
+    /// φ_h absolute: a lobe fixed on the surface (an anisotropic density of
+    /// normals) does not turn with φ_o.
+    Absolute,
+}
+
+impl PhiFrame {
+    /// The frame's code in a sampler file.
+    pub fn code(self) -> u8 {
+        match self {
+            PhiFrame::Relative => 0,
+            PhiFrame::Absolute => 1,
+        }
+    }
+
+    /// The frame of a file code.
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(PhiFrame::Relative),
+            1 => Some(PhiFrame::Absolute),
+            _ => None,
+        }
+    }
+}
+
+/// The table of the outgoing direction at u_o = `u`, φ_o = `turns` in the
+/// frame `frame`.
+fn table_at(
+    brdf: &dyn Brdf,
+    frame: PhiFrame,
+    u: f32,
+    turns: f32,
+    (n_theta_h, n_phi_h): (usize, usize),
+) -> Vec<f32> {
+    let turned = Turned::new(brdf, turns);
+    match frame {
+        PhiFrame::Relative => tabulate_for(&turned, outgoing_at(u), n_theta_h, n_phi_h),
+        PhiFrame::Absolute => tabulate_for(brdf, turned.turn(outgoing_at(u)), n_theta_h, n_phi_h),
+    }
+}
+
 /// The outgoing sampler of an anisotropic material (module documentation).
 #[derive(Clone)]
 pub struct AnisotropicOutgoingSampler {
     brdf: Arc<dyn Brdf>,
     builder: OutgoingBuilder,
     fine_phi: usize,
+    frame: PhiFrame,
     name: String,
     n_theta_h: usize,
     n_phi_h: usize,
@@ -229,37 +278,54 @@ fn served_phi(phi: &[f32], m: usize) -> Vec<f32> {
         .collect()
 }
 
-/// The table of the kept slice at u_o = `u`, φ_o = `phi` turns, with the
-/// support pass for θ_o from `u_lo` to `u_hi` and the φ_o of `served`: a
-/// cell that is 0 at the slice's own wo gets the largest of what
-/// [`fill_support`] gives it for each served φ_o.
+/// The table of the kept slice at u_o = `u`, φ_o = `phi` turns in
+/// `frame`, with the support pass for θ_o from `u_lo` to `u_hi` and the φ_o
+/// of `served`: a cell that is 0 at the slice's own wo gets the largest of
+/// what [`fill_support`] gives it for the served outgoing directions (in
+/// the relative frame one pass per served φ_o, on the material turned by
+/// it, and the largest taken).
 fn kept_table(
     brdf: &dyn Brdf,
+    frame: PhiFrame,
     (u, u_lo, u_hi): (f32, f32, f32),
     phi: f32,
     served: &[f32],
-    n_theta_h: usize,
-    n_phi_h: usize,
+    cells: (usize, usize),
 ) -> Vec<f32> {
-    let mut values = tabulate_for(&Turned::new(brdf, phi), outgoing_at(u), n_theta_h, n_phi_h);
+    let (n_theta_h, n_phi_h) = cells;
+    let mut values = table_at(brdf, frame, u, phi, cells);
     let thetas = served_between(u_lo, u_hi);
-    let filled: Vec<Vec<f32>> = served
-        .par_iter()
-        .map(|&turns| {
-            let mut v = values.clone();
-            fill_support(
-                &Turned::new(brdf, turns),
-                &thetas,
-                n_theta_h,
-                n_phi_h,
-                &mut v,
-            );
-            v
-        })
-        .collect();
-    for (i, cell) in values.iter_mut().enumerate() {
-        if *cell == 0.0 {
-            *cell = filled.iter().map(|v| v[i]).fold(0.0, f32::max);
+    match frame {
+        PhiFrame::Absolute => {
+            let outgoing: Vec<Vec3> = served
+                .iter()
+                .flat_map(|&turns| {
+                    let turned = Turned::new(brdf, turns);
+                    thetas.iter().map(move |&wo| turned.turn(wo))
+                })
+                .collect();
+            fill_support(brdf, &outgoing, n_theta_h, n_phi_h, &mut values);
+        }
+        PhiFrame::Relative => {
+            let filled: Vec<Vec<f32>> = served
+                .par_iter()
+                .map(|&turns| {
+                    let mut v = values.clone();
+                    fill_support(
+                        &Turned::new(brdf, turns),
+                        &thetas,
+                        n_theta_h,
+                        n_phi_h,
+                        &mut v,
+                    );
+                    v
+                })
+                .collect();
+            for (i, cell) in values.iter_mut().enumerate() {
+                if *cell == 0.0 {
+                    *cell = filled.iter().map(|v| v[i]).fold(0.0, f32::max);
+                }
+            }
         }
     }
     values
@@ -297,22 +363,37 @@ impl AnisotropicOutgoingSampler {
         )?;
         let u: Vec<f32> = (0..fine).map(|j| j as f32 / (fine - 1) as f32).collect();
         let phi: Vec<f32> = (0..fine_phi).map(|l| l as f32 / fine_phi as f32).collect();
-        let normalised: Vec<Vec<f32>> = (0..fine * fine_phi)
-            .into_par_iter()
-            .map(|i| {
-                let (j, l) = (i / fine_phi, i % fine_phi);
-                let mut t = tabulate_for(
-                    &Turned::new(&*brdf, phi[l]),
-                    outgoing_at(u[j]),
-                    n_theta_h,
-                    n_phi_h,
-                );
-                let sum: f64 = t.iter().map(|&v| v as f64).sum();
-                let scale = if sum > 0.0 { (1.0 / sum) as f32 } else { 0.0 };
-                t.iter_mut().for_each(|v| *v *= scale);
-                t
-            })
-            .collect();
+        let tabulate = |frame: PhiFrame| -> Vec<Vec<f32>> {
+            (0..fine * fine_phi)
+                .into_par_iter()
+                .map(|i| {
+                    let (j, l) = (i / fine_phi, i % fine_phi);
+                    let mut t = table_at(&*brdf, frame, u[j], phi[l], (n_theta_h, n_phi_h));
+                    let sum: f64 = t.iter().map(|&v| v as f64).sum();
+                    let scale = if sum > 0.0 { (1.0 / sum) as f32 } else { 0.0 };
+                    t.iter_mut().for_each(|v| *v *= scale);
+                    t
+                })
+                .collect()
+        };
+        let kept_count = |p: &[Vec<f32>]| {
+            choose_theta_breakpoints(p, &u, fine_phi, builder.budget).len()
+                * choose_phi_breakpoints(p, fine, fine_phi, builder.budget).len()
+        };
+        // An isotropic material keeps one φ_o breakpoint in the relative
+        // frame, the fewest there are; an anisotropic one takes the frame
+        // that keeps fewer slices at the budget.
+        let relative = tabulate(PhiFrame::Relative);
+        let (frame, normalised) = if brdf.is_isotropic() {
+            (PhiFrame::Relative, relative)
+        } else {
+            let absolute = tabulate(PhiFrame::Absolute);
+            if kept_count(&absolute) < kept_count(&relative) {
+                (PhiFrame::Absolute, absolute)
+            } else {
+                (PhiFrame::Relative, relative)
+            }
+        };
         let mut builder = builder;
         let mut tries = 0;
         let (kept_theta, kept_phi, slices) = loop {
@@ -329,11 +410,11 @@ impl AnisotropicOutgoingSampler {
                     let hi = u[kept_theta[(i + 1).min(kept_theta.len() - 1)]];
                     let values = kept_table(
                         &*brdf,
+                        frame,
                         (u[kept_theta[i]], lo, hi),
                         phi_kept[m],
                         &served_phi(&phi_kept, m),
-                        n_theta_h,
-                        n_phi_h,
+                        (n_theta_h, n_phi_h),
                     );
                     let d = AdaptiveCdf2D::from_values_pinned(
                         &values,
@@ -360,7 +441,7 @@ impl AnisotropicOutgoingSampler {
         Ok(Self::from_parts(
             brdf,
             builder,
-            fine_phi,
+            (fine_phi, frame),
             (n_theta_h, n_phi_h),
             theta_breakpoints,
             kept_phi,
@@ -372,7 +453,7 @@ impl AnisotropicOutgoingSampler {
     pub(crate) fn from_parts(
         brdf: Arc<dyn Brdf>,
         builder: OutgoingBuilder,
-        fine_phi: usize,
+        (fine_phi, frame): (usize, PhiFrame),
         (n_theta_h, n_phi_h): (usize, usize),
         theta_breakpoints: Vec<f32>,
         phi_breakpoints: Vec<f32>,
@@ -383,6 +464,7 @@ impl AnisotropicOutgoingSampler {
             brdf,
             builder,
             fine_phi,
+            frame,
             n_theta_h,
             n_phi_h,
             map: HalfMap::new(n_theta_h),
@@ -413,6 +495,11 @@ impl AnisotropicOutgoingSampler {
     /// The parameters (`fine` counts the θ_o nodes).
     pub fn builder(&self) -> &OutgoingBuilder {
         &self.builder
+    }
+
+    /// The frame the slices measure φ_h in.
+    pub fn frame(&self) -> PhiFrame {
+        self.frame
     }
 
     /// The number of fine φ_o nodes the breakpoints were chosen from.
@@ -495,11 +582,13 @@ impl AnisotropicOutgoingSampler {
         )
     }
 
-    /// (cos φ_o, sin φ_o) of a valid wo; φ_o = 0 on the normal.
+    /// (cos φ_o, sin φ_o) of a valid wo in the relative frame (φ_o = 0 on
+    /// the normal), (1, 0) in the absolute one: the turn from slice to world
+    /// coordinates.
     #[inline]
-    fn rotation(wo: Vec3) -> Vec2 {
+    fn rotation(&self, wo: Vec3) -> Vec2 {
         let s = sin_theta(wo);
-        if s > 0.0 {
+        if self.frame == PhiFrame::Relative && s > 0.0 {
             Vec2::new(wo.x, wo.y) / s
         } else {
             Vec2::X
@@ -521,7 +610,7 @@ impl AnisotropicOutgoingSampler {
             return 0.0;
         }
         let v = self.map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
-        let r = Self::rotation(wo);
+        let r = self.rotation(wo);
         let (hx, hy) = (r.x * sum.x + r.y * sum.y, r.x * sum.y - r.y * sum.x);
         let mut phi = fast_atan2(hy, hx);
         if phi < 0.0 {
@@ -570,7 +659,7 @@ impl AnisotropicOutgoingSampler {
         let (x, v) = d.p;
         let (sin_h, cos_h) = self.map.angles(v);
         let (sin_p, cos_p) = sin_cos_turns(x);
-        let r = Self::rotation(wo);
+        let r = self.rotation(wo);
         let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
         let h = Vec3::new(
             r.x * local.x - r.y * local.y,

@@ -8,7 +8,8 @@
 //! (u32, [`ANISOTROPIC_VERSION`]), the sampler name (`string`, e.g.
 //! `outgoing:chi2`), the simplifier name (`string`), its tolerance (f64),
 //! the breakpoint budget (f64), the fine θ_o and φ_o node counts (2 × u32),
-//! the material name (`string`), whether it is isotropic (u8, 0 or 1), its
+//! the frame of φ_h (u8: 0 from φ_o, 1 absolute; [`PhiFrame`]), the
+//! material name (`string`), whether it is isotropic (u8, 0 or 1), its
 //! fingerprint (u64), the half-vector cells θ_h and φ_h (2 × u32), the
 //! cosine mixing fraction (f32), the θ_o breakpoints u_o (`f32 array`,
 //! increasing from 0 to 1), the φ_o breakpoints in turns (`f32 array`,
@@ -18,7 +19,7 @@
 //! conditional offsets (u16), the conditional positions (u8) and the
 //! conditional CDF values (u16), each array a u32 count and the values.
 
-use super::AnisotropicOutgoingSampler;
+use super::{AnisotropicOutgoingSampler, PhiFrame};
 use crate::outgoing::persist::{
     invalid, read_u16s, read_u8s, write_u16s, write_u8s, KIND, OUTGOING_VERSION,
 };
@@ -66,6 +67,7 @@ impl AnisotropicOutgoingSampler {
         w.f64(b.budget);
         w.length(b.fine);
         w.length(self.fine_phi);
+        w.u8(self.frame.code());
         w.string(self.brdf.name());
         w.u8(self.brdf.is_isotropic() as u8);
         w.u64(self.brdf.fingerprint());
@@ -115,6 +117,9 @@ impl AnisotropicOutgoingSampler {
         let budget = r.f64("budget")?;
         let fine = r.u32("fine theta_o nodes")? as usize;
         let fine_phi = r.u32("fine phi_o nodes")? as usize;
+        let code = r.u8("phi_h frame")?;
+        let frame = PhiFrame::from_code(code)
+            .ok_or_else(|| invalid("phi_h frame", format!("{code} is not 0 or 1")))?;
         let builder = OutgoingBuilder {
             simplifier,
             max_bytes: None,
@@ -198,7 +203,7 @@ impl AnisotropicOutgoingSampler {
         AnisotropicOutgoingSampler::from_parts(
             brdf,
             builder,
-            fine_phi,
+            (fine_phi, frame),
             (n_theta_h, n_phi_h),
             theta,
             phi,
