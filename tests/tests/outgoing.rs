@@ -93,8 +93,8 @@ fn anisotropic_config(wo_theta_degrees: Vec<f32>, wo_phi: f32) -> SamplerConfig 
     }
 }
 
-/// On the normal, between breakpoints and next to the horizon, at the
-/// battery's φ_o (1 rad).
+// On the normal, between breakpoints and next to the horizon, at the
+// battery's φ_o (1 rad).
 sampler_battery!(
     chi2_outgoing_anisotropic,
     build = anisotropic,
