@@ -2,11 +2,13 @@
 //! isotropic resolution (128 fine θ_o slices, 256 θ_h x 32 φ_h cells per
 //! kept slice) with the `chi2` simplifier, on the built-in `nickel`,
 //! `lambert` and `near-mirror`, with wo on the normal, between
-//! breakpoints and next to the horizon; and on nickel with wo exactly at
+//! breakpoints and next to the horizon, and at a θ_o breakpoint and
+//! halfway to the next just below the φ_o seam at 2π. and on nickel with wo exactly at
 //! one of its breakpoints and halfway to the next. The anisotropic
 //! outgoing sampler at 16x8x128x32 (32 θ_o × 16 φ_o fine nodes) on the
 //! battery's anisotropic GGX lobe, with wo on the normal, between
-//! breakpoints and next to the horizon.
+//! breakpoints and next to the horizon, and at a θ_o breakpoint and
+//! halfway to the next just below the φ_o seam at 2π.
 
 use acdf_adaptive::outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_adaptive::outgoing::FINE_PER_CELL;
@@ -100,3 +102,24 @@ sampler_battery!(
     brdfs = [ggx()],
     config = anisotropic_config(vec![0.0, 40.0, 89.5], 1.0)
 );
+
+/// wo exactly at a θ_o breakpoint (its row of slices has all the θ_o
+/// weight) and halfway to the next, just below the φ_o seam at 2π (the
+/// last φ_o interval, blending the last φ_o breakpoint with the first).
+#[test]
+fn chi2_outgoing_anisotropic_at_a_breakpoint_and_the_seam() {
+    let built = anisotropic(ggx()).expect("the lobe builds");
+    let theta = built.theta_breakpoint_angles();
+    assert!(theta.len() >= 3, "{theta:?}");
+    let k = theta.len() / 2;
+    let at = theta[k].to_degrees();
+    let between = (0.5 * (theta[k] + theta[k + 1])).to_degrees();
+    let report = check_sampler_family(
+        "chi2_outgoing_anisotropic_seam",
+        anisotropic,
+        &[ggx()],
+        &anisotropic_config(vec![at, between], std::f32::consts::TAU - 1e-3),
+    );
+    report.print();
+    assert!(report.passed(), "{report}");
+}
