@@ -21,9 +21,11 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use acdf_adaptive::outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_adaptive::outgoing::FINE_PER_CELL;
 use acdf_adaptive::{
-    average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder, OutgoingBuilder, OutgoingSampler,
+    average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder, AnisotropicOutgoingSampler,
+    OutgoingBuilder, OutgoingSampler,
 };
 use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
@@ -181,6 +183,33 @@ impl SamplerOps for OutgoingSampler {
     }
 }
 
+impl SamplerOps for AnisotropicOutgoingSampler {
+    /// θ_o breakpoints x φ_o breakpoints / fine θ_o x fine φ_o nodes x the
+    /// mean kept vertices.
+    fn resolution_label(&self) -> String {
+        let (m, c) = AnisotropicOutgoingSampler::mean_vertices(self);
+        format!(
+            "{}x{}/{}x{}x{m:.1}x{c:.1}",
+            self.theta_breakpoint_angles().len(),
+            self.phi_breakpoint_angles().len(),
+            self.builder().fine,
+            self.fine_phi()
+        )
+    }
+    fn material_name(&self) -> Option<&str> {
+        Some(self.brdf().name())
+    }
+    fn material_fingerprint(&self) -> Option<u64> {
+        Some(self.brdf().fingerprint())
+    }
+    fn mean_vertices(&self) -> Option<(f64, f64)> {
+        Some(AnisotropicOutgoingSampler::mean_vertices(self))
+    }
+    fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
+        Some(self.save(path))
+    }
+}
+
 // Every variant takes a doc comment (`+`, not `*`): without an attribute
 // the variant's tokens reach `enum_dispatch` with the spans of this macro,
 // and the binding it generates for the variant's value no longer resolves.
@@ -234,6 +263,9 @@ any_sampler! {
     Rgl(RglSampler),
     /// `outgoing:SIMPLIFIER`: θ_o breakpoints per material, blended slices.
     Outgoing(OutgoingSampler),
+    /// `outgoing:SIMPLIFIER` for an anisotropic material: θ_o × φ_o
+    /// breakpoints, four blended slices.
+    OutgoingAnisotropic(AnisotropicOutgoingSampler),
 }
 
 impl std::fmt::Debug for AnySampler {
@@ -341,27 +373,40 @@ pub static SAMPLERS: &[SamplerFamily] = &[
     },
     SamplerFamily {
         name: OUTGOING,
-        description: "adaptive outgoing angles: slices at θ_o breakpoints chosen per material, \
-                      blended, 16-bit; isotropic materials only, outgoing:SIMPLIFIER",
+        description: "adaptive outgoing angles: slices at θ_o breakpoints (and φ_o ones for \
+                      anisotropic materials) chosen per material, blended, 16-bit, \
+                      outgoing:SIMPLIFIER",
         simplifiers: true,
         report_rank: None,
         in_render: false,
-        requires: Some(Requirement {
-            met: |m| m.brdf.is_isotropic(),
-            reason: "the outgoing sampler serves isotropic materials",
-            serves: "isotropic materials",
-        }),
+        requires: None,
         file_kind: Some(acdf_adaptive::outgoing::persist::KIND),
         build: |spec, m, o| {
             let simplifier = spec
                 .simplifier()
                 .unwrap_or_else(SimplifierName::default_simplifier);
-            let fine = o.resolution.theta_o.saturating_mul(FINE_PER_CELL);
-            let builder = OutgoingBuilder::by_name(simplifier.short(), o.tolerance, fine)?;
-            let sampler = OutgoingSampler::new(m.brdf.clone(), o.resolution, builder)?;
-            Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())
+            if m.brdf.is_isotropic() {
+                let fine = o.resolution.theta_o.saturating_mul(FINE_PER_CELL);
+                let builder = OutgoingBuilder::by_name(simplifier.short(), o.tolerance, fine)?;
+                let sampler = OutgoingSampler::new(m.brdf.clone(), o.resolution, builder)?;
+                Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())
+            } else {
+                let r = effective_resolution(m, o.resolution);
+                let fine = r.theta_o.saturating_mul(ANISOTROPIC_FINE_PER_CELL);
+                let fine_phi = r.phi_o.saturating_mul(FINE_PHI_PER_CELL);
+                let builder = OutgoingBuilder::by_name(simplifier.short(), o.tolerance, fine)?;
+                let sampler =
+                    AnisotropicOutgoingSampler::new(m.brdf.clone(), r, builder, fine_phi)?;
+                Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())
+            }
         },
-        load: Some(|bytes| Ok(OutgoingSampler::from_bytes(bytes)?.into())),
+        load: Some(|bytes| {
+            if acdf_adaptive::outgoing::anisotropic::persist::is_anisotropic(bytes)? {
+                Ok(AnisotropicOutgoingSampler::from_bytes(bytes)?.into())
+            } else {
+                Ok(OutgoingSampler::from_bytes(bytes)?.into())
+            }
+        }),
     },
     SamplerFamily {
         name: "rgl",
@@ -1031,5 +1076,41 @@ mod tests {
         );
         // Without the adjustment the uniform plug-in would reject it.
         assert!(make_sampler("uniform", &aniso, &SamplerOptions::default()).is_ok());
+    }
+
+    /// `outgoing:SIMPLIFIER` builds the anisotropic outgoing sampler for an
+    /// anisotropic material (the isotropic one for an isotropic material),
+    /// and its file loads back as the same variant with the same draws.
+    #[test]
+    fn anisotropic_materials_get_the_anisotropic_outgoing_sampler() {
+        let m = nickel();
+        let options = SamplerOptions {
+            resolution: "8x1x32x8".parse().unwrap(),
+            ..SamplerOptions::default()
+        };
+        let iso = make_sampler("outgoing:chi2", &m, &options).unwrap();
+        assert!(matches!(iso, AnySampler::Outgoing(_)));
+        let aniso = Material {
+            brdf: Arc::new(Anisotropic(m.brdf.clone())),
+            ..m
+        };
+        let s = make_sampler("outgoing:chi2", &aniso, &options).unwrap();
+        assert_eq!(s.name(), "outgoing:chi2");
+        let AnySampler::OutgoingAnisotropic(inner) = &s else {
+            panic!("expected the anisotropic outgoing sampler, got {s:?}");
+        };
+        // 8 θ_o cells and the paper's 16 φ_o cells, two nodes per cell.
+        assert_eq!((inner.builder().fine, inner.fine_phi()), (16, 32));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("aniso.acdfs");
+        save_sampler(&s, &path).unwrap();
+        let loaded = load_sampler_for(&path, &aniso).unwrap();
+        assert!(matches!(loaded, AnySampler::OutgoingAnisotropic(_)));
+        assert_eq!(loaded.storage_bytes(), s.storage_bytes());
+        let wo = Vec3::new(0.3, -0.4, 0.8).normalize();
+        for k in 0..50 {
+            let u = Vec2::new((k as f32 + 0.5) / 50.0, (k as f32 * 0.618).fract());
+            assert_eq!(loaded.sample(wo, u), s.sample(wo, u));
+        }
     }
 }

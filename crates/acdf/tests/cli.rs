@@ -1105,10 +1105,13 @@ fn bench_prints_a_table_and_writes_documented_json() {
     // The clock readings are those of a real core (the loop with its chain
     // of additions taken out read 11.8 GHz, removed altogether it would
     // read millions), and the table turns the per-call rates into cycles.
+    // The lower bound is loose: on a loaded machine the timing loop shares
+    // its core, which lowers the reading (0.2996 GHz read at a load
+    // average of 11).
     for field in ["clock_ghz_start", "clock_ghz_end"] {
         if cfg!(target_arch = "x86_64") {
             let ghz = v[field].as_f64().unwrap_or(f64::NAN);
-            assert!((0.3..10.0).contains(&ghz), "{field}: {ghz}");
+            assert!((0.05..10.0).contains(&ghz), "{field}: {ghz}");
         } else {
             assert!(v[field].is_null(), "{field}: {}", v[field]);
         }

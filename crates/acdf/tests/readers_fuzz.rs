@@ -21,7 +21,9 @@ use std::sync::OnceLock;
 use acdf::materials::merl::MerlTable;
 use acdf::materials::nbrdf::{NbrdfLibrary, WEIGHTS_PER_MATERIAL};
 use acdf::materials::rgl::{write_tensor_file, Dtype, RglBrdf, TensorFile};
-use acdf_adaptive::{AdaptiveBrdfSampler, AdaptiveBuilder};
+use acdf_adaptive::{
+    AdaptiveBrdfSampler, AdaptiveBuilder, AnisotropicOutgoingSampler, OutgoingBuilder,
+};
 use acdf_core::{Brdf, BxdfSampler, Vec2, Vec3};
 use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
 use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
@@ -276,6 +278,34 @@ fn adaptive_seed() -> &'static [u8] {
     })
 }
 
+/// Built-in nickel claiming to depend on both azimuths.
+struct Anisotropic(std::sync::Arc<dyn Brdf>);
+impl Brdf for Anisotropic {
+    fn name(&self) -> &str {
+        "anisotropic-nickel"
+    }
+    fn eval(&self, wo: Vec3, wi: Vec3) -> acdf_core::Rgb {
+        self.0.eval(wo, wi)
+    }
+    fn is_isotropic(&self) -> bool {
+        false
+    }
+}
+
+/// A small anisotropic outgoing sampler's file (8 θ_o x 8 φ_o nodes,
+/// 16 x 8 half-vector cells).
+fn anisotropic_outgoing_seed() -> &'static [u8] {
+    static SEED: OnceLock<Vec<u8>> = OnceLock::new();
+    cell(&SEED, || {
+        let nickel = acdf::materials::builtin("nickel").unwrap();
+        let builder = OutgoingBuilder::by_name("chi2", None, 8).unwrap();
+        let res: Resolution = "4x4x16x8".parse().unwrap();
+        AnisotropicOutgoingSampler::new(std::sync::Arc::new(Anisotropic(nickel)), res, builder, 8)
+            .unwrap()
+            .to_bytes()
+    })
+}
+
 /// A 32 x 16 map with a bright spot, as a Radiance file (run-length
 /// encoded scanlines, as the `image` crate writes them).
 fn hdr_seed() -> &'static [u8] {
@@ -363,6 +393,12 @@ fn read_adaptive(bytes: &[u8]) {
     }
 }
 
+fn read_anisotropic_outgoing(bytes: &[u8]) {
+    if let Ok(s) = AnisotropicOutgoingSampler::from_bytes(bytes) {
+        check_sampler(&s);
+    }
+}
+
 /// One proptest per reader: `fuzz_reader!(name, cases, seed, read)`.
 macro_rules! fuzz_reader {
     ($name:ident, $cases:expr, $seed:expr, $read:expr) => {
@@ -388,6 +424,12 @@ fuzz_reader!(rgl_shared_file, 12, real_rgl_seed, read_rgl);
 fuzz_reader!(nbrdf_weights, 300, nbrdf_seed, read_nbrdf);
 fuzz_reader!(uniform_sampler_files, 300, uniform_seed, read_uniform);
 fuzz_reader!(adaptive_sampler_files, 300, adaptive_seed, read_adaptive);
+fuzz_reader!(
+    anisotropic_outgoing_files,
+    300,
+    anisotropic_outgoing_seed,
+    read_anisotropic_outgoing
+);
 fuzz_reader!(hdr_images, 300, hdr_seed, read_hdr);
 
 /// The file forms, on inputs whose header lies about the size: each is

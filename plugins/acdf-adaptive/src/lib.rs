@@ -23,7 +23,8 @@
 //!   form);
 //! - [`outgoing`]: [`OutgoingSampler`], slices kept only at the θ_o
 //!   breakpoints a material needs, blended linearly between them, stored
-//!   in 16 bits.
+//!   in 16 bits; for anisotropic materials [`AnisotropicOutgoingSampler`],
+//!   the same on a grid of θ_o and φ_o breakpoints.
 //!
 //! # Tolerances and how the defaults were chosen
 //!
@@ -73,7 +74,7 @@ pub mod simplify;
 
 pub use dist::{AdaptiveCdf1D, AdaptiveCdf2D};
 pub use env::{adaptive_env_sampler, oriented_env_sampler, AdaptiveEnvSampler, OrientedEnvSampler};
-pub use outgoing::{OutgoingBuilder, OutgoingSampler};
+pub use outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
 pub use packed_env::{PackedEnvBuilder, PackedEnvCdf2D};
 pub use sampler::{adaptive_sampler, average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
 pub use simplify::{

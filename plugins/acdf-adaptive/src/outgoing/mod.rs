@@ -38,9 +38,11 @@
 // comparison is the point, since NaN must take the rejecting branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod anisotropic;
 mod packed;
 pub mod persist;
 
+pub use anisotropic::AnisotropicOutgoingSampler;
 pub use packed::PackedCdf2D;
 
 use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
@@ -178,10 +180,10 @@ pub const DEFAULT_MAX_BYTES: usize = 17_627;
 pub const CAP_STEP: f64 = 1.5;
 
 /// Builds a capped sampler tries at most.
-const CAP_TRIES: usize = 8;
+pub(crate) const CAP_TRIES: usize = 8;
 
 /// θ_o of the fine node u (the grazing end at cos θ_o = [`GRAZING_COS`]).
-fn outgoing_at(u: f32) -> Vec3 {
+pub(crate) fn outgoing_at(u: f32) -> Vec3 {
     let theta = FRAC_PI_2 * u * u;
     let (sin_t, cos_t) = theta.sin_cos();
     if cos_t > GRAZING_COS {
@@ -194,7 +196,7 @@ fn outgoing_at(u: f32) -> Vec3 {
 /// Σ p² / q - 1 of the table `p` against the blend `(1 - t) a + t b` (all
 /// normalised), where q = 0 with p > 0 counts p² / (p / 1000): a missing
 /// cell costs a thousand times its mass.
-fn blend_divergence(p: &[f32], a: &[f32], b: &[f32], t: f32) -> f64 {
+pub(crate) fn blend_divergence(p: &[f32], a: &[f32], b: &[f32], t: f32) -> f64 {
     let mut sum = 0.0f64;
     for ((&p, &a), &b) in p.iter().zip(a).zip(b) {
         if p > 0.0 {
@@ -231,7 +233,7 @@ fn choose_breakpoints(p: &[Vec<f32>], u: &[f32], budget: f64) -> Vec<usize> {
 
 /// The outgoing directions a kept slice serves, at φ_o = 0: from u_lo to
 /// u_hi in steps of at most 1/64 in u_o, both ends included.
-fn served_between(u_lo: f32, u_hi: f32) -> Vec<Vec3> {
+pub(crate) fn served_between(u_lo: f32, u_hi: f32) -> Vec<Vec3> {
     let steps = (((u_hi - u_lo) * 64.0).ceil() as usize).max(1);
     (0..=steps)
         .map(|k| outgoing_at(u_lo + (u_hi - u_lo) * k as f32 / steps as f32))

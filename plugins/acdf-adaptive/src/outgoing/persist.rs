@@ -3,7 +3,9 @@
 //! that module's).
 //!
 //! The body, in order: the kind `outgoing` (`string`), the layout version
-//! of this body (u32, [`OUTGOING_VERSION`]), the sampler name (`string`,
+//! of this body (u32, [`OUTGOING_VERSION`]; the anisotropic sampler's
+//! layout, [`ANISOTROPIC_VERSION`](super::anisotropic::persist::ANISOTROPIC_VERSION),
+//! is read by [`super::anisotropic::persist`]), the sampler name (`string`,
 //! e.g. `outgoing:chi2`), the simplifier name (`string`), its tolerance
 //! (f64), the θ_o budget (f64), the fine slice count (u32), the material
 //! name (`string`), whether it is isotropic (u8, 1), its fingerprint (u64),
@@ -30,7 +32,7 @@ pub const KIND: &str = "outgoing";
 /// The layout version of the body this build writes and reads.
 pub const OUTGOING_VERSION: u32 = 1;
 
-fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
+pub(crate) fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
     w.length(values.len());
     for &v in values {
         let [a, b] = v.to_le_bytes();
@@ -39,27 +41,67 @@ fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
     }
 }
 
-fn write_u8s(w: &mut ByteWriter, values: &[u8]) {
+pub(crate) fn write_u8s(w: &mut ByteWriter, values: &[u8]) {
     w.length(values.len());
     for &v in values {
         w.u8(v);
     }
 }
 
-fn read_u8s(r: &mut ByteReader<'_>, field: &'static str) -> Result<Vec<u8>, PersistError> {
+pub(crate) fn read_u8s(
+    r: &mut ByteReader<'_>,
+    field: &'static str,
+) -> Result<Vec<u8>, PersistError> {
     let n = r.count(field, 1)?;
     (0..n).map(|_| r.u8(field)).collect()
 }
 
-fn read_u16s(r: &mut ByteReader<'_>, field: &'static str) -> Result<Vec<u16>, PersistError> {
+pub(crate) fn read_u16s(
+    r: &mut ByteReader<'_>,
+    field: &'static str,
+) -> Result<Vec<u16>, PersistError> {
     let n = r.count(field, 2)?;
     (0..n)
         .map(|_| Ok(u16::from_le_bytes([r.u8(field)?, r.u8(field)?])))
         .collect()
 }
 
-fn invalid(field: &'static str, reason: String) -> PersistError {
+pub(crate) fn invalid(field: &'static str, reason: String) -> PersistError {
     PersistError::Invalid { field, reason }
+}
+
+/// Write one slice's five arrays, in the order the module documentation gives.
+pub(crate) fn write_slice(w: &mut ByteWriter, s: &PackedCdf2D) {
+    write_u16s(w, s.marginal_pos());
+    write_u16s(w, s.marginal_cdf());
+    write_u16s(w, s.offsets());
+    write_u8s(w, s.conditional_pos());
+    write_u16s(w, s.conditional_cdf());
+}
+
+/// Read one slice written by [`write_slice`] and check it against the
+/// half-vector grid (`n_phi_h` × `n_theta_h` cells).
+pub(crate) fn read_slice(
+    r: &mut ByteReader<'_>,
+    n_phi_h: usize,
+    n_theta_h: usize,
+) -> Result<PackedCdf2D, PersistError> {
+    let marginal_pos = read_u16s(r, "marginal positions")?;
+    let marginal_cdf = read_u16s(r, "marginal CDF")?;
+    let offsets = read_u16s(r, "offsets")?;
+    let conditional_pos = read_u8s(r, "conditional positions")?;
+    let conditional_cdf = read_u16s(r, "conditional CDF")?;
+    let slice = PackedCdf2D::from_arrays(
+        &marginal_pos,
+        &marginal_cdf,
+        &offsets,
+        conditional_pos,
+        &conditional_cdf,
+    );
+    slice
+        .validate(n_phi_h, n_theta_h)
+        .map_err(|reason| invalid("slice", reason))?;
+    Ok(slice)
 }
 
 impl OutgoingSampler {
@@ -82,11 +124,7 @@ impl OutgoingSampler {
         w.f32(self.cosine_fraction);
         w.f32_array(&self.breakpoints);
         for s in &self.slices {
-            write_u16s(&mut w, s.marginal_pos());
-            write_u16s(&mut w, s.marginal_cdf());
-            write_u16s(&mut w, s.offsets());
-            write_u8s(&mut w, s.conditional_pos());
-            write_u16s(&mut w, s.conditional_cdf());
+            write_slice(&mut w, s);
         }
         seal(&w.into_bytes())
     }
@@ -159,22 +197,7 @@ impl OutgoingSampler {
         }
         let mut slices = Vec::with_capacity(n.min(r.remaining()));
         for _ in 0..n {
-            let marginal_pos = read_u16s(&mut r, "marginal positions")?;
-            let marginal_cdf = read_u16s(&mut r, "marginal CDF")?;
-            let offsets = read_u16s(&mut r, "offsets")?;
-            let conditional_pos = read_u8s(&mut r, "conditional positions")?;
-            let conditional_cdf = read_u16s(&mut r, "conditional CDF")?;
-            let slice = PackedCdf2D::from_arrays(
-                &marginal_pos,
-                &marginal_cdf,
-                &offsets,
-                conditional_pos,
-                &conditional_cdf,
-            );
-            slice
-                .validate(n_phi_h, n_theta_h)
-                .map_err(|reason| invalid("slice", reason))?;
-            slices.push(slice);
+            slices.push(read_slice(&mut r, n_phi_h, n_theta_h)?);
         }
         r.finish()?;
         let brdf = Arc::new(StoredMaterial {
