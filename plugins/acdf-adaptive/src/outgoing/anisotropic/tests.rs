@@ -226,9 +226,17 @@ fn hostile_files_are_typed_errors() {
     assert_eq!(field_of(e), "slices");
     // A slice whose CDF runs backwards.
     let mut bad = s.clone();
-    let c = &mut bad.slices[1].marginal_cdf;
+    let slice = &bad.slices[1];
+    let mut c = slice.marginal_cdf().to_vec();
     let last = c.len() - 2;
     c.swap(1, last);
+    bad.slices[1] = PackedCdf2D::from_arrays(
+        slice.marginal_pos(),
+        &c,
+        slice.offsets(),
+        slice.conditional_pos().to_vec(),
+        slice.conditional_cdf(),
+    );
     let e = AnisotropicOutgoingSampler::from_bytes(&bad.to_bytes())
         .err()
         .unwrap();
