@@ -1,7 +1,8 @@
 //! Time per call of environment sampling against BRDF sampling: `sample`
 //! of the environment samplers (the shading normal changing on every call,
 //! as in a renderer) beside `sample` of the BRDF samplers (the outgoing
-//! direction changing on every call), one thread.
+//! direction changing on every call), one thread. The orientation-aware
+//! sampler is also timed with each normal held for 64 consecutive calls.
 //!
 //! The map is `rooitou_park_1k.hdr` of the shared data when present (a
 //! sun holding 66% of the energy), else a generated 1024 × 512 sky with a
@@ -23,6 +24,9 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
 
 const CALLS: usize = 4096;
+
+/// Consecutive calls that share a normal in the coherent variant.
+const COHERENT_RUN: usize = 64;
 
 /// The shared map, or a generated sky with a sun.
 fn map() -> (String, Arc<EnvMap>) {
@@ -73,6 +77,20 @@ fn env(c: &mut Criterion) {
                 }
             })
         });
+        if name == "oriented:dp" {
+            // The same normals, each for a run of consecutive calls, as a
+            // renderer's neighbouring pixels on one surface give: the
+            // region's table stays in cache, which separates the cost of
+            // the draw from that of its cache misses.
+            group.bench_function("oriented:dp, coherent normals", |b| {
+                b.iter(|| {
+                    for (i, &u) in u.iter().enumerate() {
+                        let n = normals[(i / COHERENT_RUN) % normals.len()];
+                        black_box(s.sample(Some(black_box(n)), black_box(u)));
+                    }
+                })
+            });
+        }
     }
     group.finish();
 }
