@@ -880,6 +880,16 @@ fn render_equal_time_runs_at_least_one_pass() {
         ]);
         assert_one_line_error(&o, "mis-fraction");
     }
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--timing-repeats",
+        "0",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "timing-repeats");
 }
 
 #[test]

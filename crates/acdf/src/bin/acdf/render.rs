@@ -75,7 +75,7 @@ pub struct Args {
     #[arg(long, value_name = "S")]
     seconds: Option<f64>,
     /// Timed passes (at least 8192 camera samples each) of the CPU time per
-    /// camera sample; the fastest counts.
+    /// camera sample, at least 1; the fastest counts.
     #[arg(long, value_name = "N", default_value_t = 9)]
     timing_repeats: usize,
     /// Samples per pixel of the reference (MIS with the power heuristic),
@@ -523,7 +523,7 @@ fn print_tables(
         out,
         "equal CPU time ({budget} s of one thread, modelled: RMSE at {} spp x sqrt(spp x pixels x CPU s per camera sample / {budget}); fastest of {} timed passes)",
         a.spp,
-        a.timing_repeats.max(1)
+        a.timing_repeats
     )?;
     writeln!(
         out,
@@ -627,6 +627,13 @@ fn check_sizes(a: &Args) -> Result<usize> {
                 reason: format!("must be a positive number of seconds, at most {MAX_SECONDS:e}"),
             });
         }
+    }
+    if a.timing_repeats == 0 {
+        return Err(Error::InvalidArgument {
+            what: "timing-repeats",
+            value: "0".into(),
+            reason: "need at least 1 timed pass".into(),
+        });
     }
     if !(0.0..=1.0).contains(&a.mis_fraction) {
         return Err(Error::InvalidArgument {
