@@ -63,6 +63,7 @@ use acdf_core::{
 use acdf_tabulated::tabulate::{fill_support, HalfMap};
 use acdf_tabulated::{tabulate_for, Resolution};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::f32::consts::{FRAC_PI_2, TAU};
 use std::sync::Arc;
 
@@ -278,6 +279,42 @@ fn served_phi(phi: &[f32], m: usize) -> Vec<f32> {
         .collect()
 }
 
+/// What a kept slice's table depends on, as fine node indices: its θ_o
+/// node and those of its θ_o neighbours, its φ_o node and those of its φ_o
+/// neighbours (`fine_phi` for the end of the circle after the last
+/// breakpoint; `usize::MAX` for both when one φ_o breakpoint serves the
+/// whole circle).
+type SliceKey = [usize; 6];
+
+/// The [`SliceKey`] of the kept slice (i, m).
+fn slice_key(
+    kept_theta: &[usize],
+    kept_phi: &[usize],
+    fine_phi: usize,
+    i: usize,
+    m: usize,
+) -> SliceKey {
+    let (prev, next) = match kept_phi.len() {
+        1 => (usize::MAX, usize::MAX),
+        k => (
+            kept_phi[if m == 0 { k - 1 } else { m - 1 }],
+            if m + 1 == k {
+                fine_phi
+            } else {
+                kept_phi[m + 1]
+            },
+        ),
+    };
+    [
+        kept_theta[i],
+        kept_theta[i.saturating_sub(1)],
+        kept_theta[(i + 1).min(kept_theta.len() - 1)],
+        kept_phi[m],
+        prev,
+        next,
+    ]
+}
+
 /// The table of the kept slice at u_o = `u`, φ_o = `phi` turns in
 /// `frame`, with the support pass for θ_o from `u_lo` to `u_hi` and the φ_o
 /// of `served`: a cell that is 0 at the slice's own wo gets the largest of
@@ -396,6 +433,11 @@ impl AnisotropicOutgoingSampler {
         };
         let mut builder = builder;
         let mut tries = 0;
+        // The kept slices' tables (with their support passes) depend only on
+        // the fine nodes of the slice and of its neighbours, so a raise of
+        // the tolerance under the storage cap rebuilds only the slices whose
+        // neighbourhood changed.
+        let mut tables: HashMap<SliceKey, Vec<f32>> = HashMap::new();
         let (kept_theta, kept_phi, slices) = loop {
             let kept_theta = choose_theta_breakpoints(&normalised, &u, fine_phi, builder.budget);
             let kept_phi = choose_phi_breakpoints(&normalised, fine, fine_phi, builder.budget);
@@ -403,9 +445,19 @@ impl AnisotropicOutgoingSampler {
             let cells: Vec<(usize, usize)> = (0..kept_theta.len())
                 .flat_map(|i| (0..kept_phi.len()).map(move |m| (i, m)))
                 .collect();
-            let slices = cells
+            let keys: Vec<SliceKey> = cells
+                .iter()
+                .map(|&(i, m)| slice_key(&kept_theta, &kept_phi, fine_phi, i, m))
+                .collect();
+            let mut missing: Vec<(usize, usize, SliceKey)> = Vec::new();
+            for (&(i, m), &key) in cells.iter().zip(&keys) {
+                if !tables.contains_key(&key) && !missing.iter().any(|&(_, _, k)| k == key) {
+                    missing.push((i, m, key));
+                }
+            }
+            let built: Vec<(SliceKey, Vec<f32>)> = missing
                 .par_iter()
-                .map(|&(i, m)| {
+                .map(|&(i, m, key)| {
                     let lo = u[kept_theta[i.saturating_sub(1)]];
                     let hi = u[kept_theta[(i + 1).min(kept_theta.len() - 1)]];
                     let values = kept_table(
@@ -416,15 +468,23 @@ impl AnisotropicOutgoingSampler {
                         &served_phi(&phi_kept, m),
                         (n_theta_h, n_phi_h),
                     );
+                    (key, values)
+                })
+                .collect();
+            tables.extend(built);
+            let slices = keys
+                .par_iter()
+                .map(|key| {
+                    let values = &tables[key];
                     let d = AdaptiveCdf2D::from_values_pinned(
-                        &values,
+                        values,
                         n_phi_h,
                         n_theta_h,
                         &*builder.simplifier,
                         builder.tolerance,
                         1,
                     )?;
-                    PackedCdf2D::from_adaptive(&d, &values, n_phi_h, n_theta_h)
+                    PackedCdf2D::from_adaptive(&d, values, n_phi_h, n_theta_h)
                 })
                 .collect::<Result<Vec<_>>>()?;
             let bytes = stored_bytes(kept_theta.len() + kept_phi.len(), &slices);
