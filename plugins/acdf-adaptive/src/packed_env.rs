@@ -395,8 +395,10 @@ fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<usize>> {
 /// Quantised CDF values (0 to `q`) of segments with these masses (not all
 /// zero): round(c · q) of the exact CDF c, except that a segment with mass
 /// keeps at least one unit and a segment without keeps none (so the curve
-/// needs fewer positive segments than q).
-fn quantise(masses: &[f64], q: u32) -> Vec<u32> {
+/// needs fewer positive segments than q). The last value is q: a trailing
+/// run of empty segments keeps the value the last positive one carried to
+/// q. The one quantisation of the packed environment and outgoing tables.
+pub(crate) fn quantise(masses: &[f64], q: u32) -> Vec<u32> {
     let total: f64 = masses.iter().sum();
     let mut positive_after = vec![0u32; masses.len() + 1];
     for i in (0..masses.len()).rev() {

@@ -599,34 +599,12 @@ fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
 }
 
 /// Quantised CDF values (0 to 65535) of segments with these masses (not all
-/// zero): round(c · 65535) of the exact CDF c, except that a segment with
-/// mass keeps at least one unit and a segment without keeps none.
+/// zero): [`crate::packed_env::quantise`] at q = 65535.
 pub(crate) fn quantise(masses: &[f64]) -> Vec<u16> {
-    let total: f64 = masses.iter().sum();
-    let mut positive_after = vec![0u32; masses.len() + 1];
-    for i in (0..masses.len()).rev() {
-        positive_after[i] = positive_after[i + 1] + (masses[i] > 0.0) as u32;
-    }
-    let mut out = Vec::with_capacity(masses.len() + 1);
-    out.push(0u16);
-    let mut running = 0.0f64;
-    for (i, &mass) in masses.iter().enumerate() {
-        running += mass;
-        let previous = *out.last().expect("one value") as u32;
-        let q = if mass > 0.0 {
-            let target = (running / total * Q as f64).round() as u32;
-            target
-                .max(previous + 1)
-                .min(Q as u32 - positive_after[i + 1])
-        } else {
-            previous
-        };
-        out.push(q as u16);
-    }
-    // The last value is Q whenever a positive segment is last; after a
-    // trailing run of empty segments it is carried to Q by the last
-    // positive one (its bound is Q), so it always ends at Q.
-    out
+    crate::packed_env::quantise(masses, Q as u32)
+        .into_iter()
+        .map(|v| v as u16)
+        .collect()
 }
 
 #[cfg(test)]
