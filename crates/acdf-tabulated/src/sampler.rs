@@ -889,7 +889,7 @@ impl TableCoordinates {
 /// `acdf bench` times `sample`). In the batch loops the compiler still
 /// turns the branch into a select, so they vectorise as before.
 #[inline(always)]
-fn unit_reflection(wo: Vec3, h: Vec3, wo_h: f32) -> Vec3 {
+pub fn unit_reflection(wo: Vec3, h: Vec3, wo_h: f32) -> Vec3 {
     let w = reflect_given_dot(wo, h, wo_h);
     let wo_length_squared = wo.length_squared();
     if (wo_length_squared - 1.0).abs() < 1e-3 {

@@ -29,8 +29,11 @@ use std::sync::Arc;
 /// The kind recorded in the file.
 pub const KIND: &str = "outgoing";
 
-/// The layout version of the body this build writes and reads.
-pub const OUTGOING_VERSION: u32 = 1;
+/// The layout version of the body this build writes and reads: 3, whose
+/// slices blend linearly in cos θ_o. Layout 1 (blending linearly in u_o)
+/// is refused: its breakpoints were chosen for the other blend, so the
+/// sampler is rebuilt instead (2 is the anisotropic layout).
+pub const OUTGOING_VERSION: u32 = 3;
 
 pub(crate) fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
     w.length(values.len());
@@ -107,9 +110,15 @@ pub(crate) fn read_slice(
 impl OutgoingSampler {
     /// The sampler as a file image (module documentation).
     pub fn to_bytes(&self) -> Vec<u8> {
+        self.to_bytes_as(OUTGOING_VERSION)
+    }
+
+    /// The file image with `version` in its layout field (the tests write
+    /// other layouts' numbers with it).
+    pub(crate) fn to_bytes_as(&self, version: u32) -> Vec<u8> {
         let mut w = ByteWriter::new();
         w.string(KIND);
-        w.u32(OUTGOING_VERSION);
+        w.u32(version);
         w.string(self.name());
         let b = &self.builder;
         w.string(b.simplifier.name());
@@ -147,9 +156,14 @@ impl OutgoingSampler {
         }
         let version = r.u32("outgoing version")?;
         if version != OUTGOING_VERSION {
+            let why = if version == 1 {
+                " (layout 1 blends its slices linearly in u_o: build the sampler again)"
+            } else {
+                ""
+            };
             return Err(invalid(
                 "outgoing version",
-                format!("{version} is not the layout this build reads ({OUTGOING_VERSION})"),
+                format!("{version} is not the layout this build reads ({OUTGOING_VERSION}){why}"),
             ));
         }
         let name = r.string("sampler name")?;

@@ -181,3 +181,76 @@ fn batch_forms_equal_single_calls() {
         }
     }
 }
+
+/// The blend weight is linear in cos θ_o between two breakpoints, 0 and 1
+/// at their ends, and the blended weights of the slices are continuous
+/// across a breakpoint; the normal, the grazing end, NaN and a lone
+/// breakpoint give valid pairs.
+#[test]
+fn blend_weights_follow_cos_theta_o() {
+    let u = [0.0, 0.3, 0.7, 1.0];
+    let blend = ThetaOBlend::new(&u);
+    let cos: Vec<f32> = u.iter().map(|&u| outgoing_at(u).z).collect();
+    assert_eq!(blend.at(1.0), (0, 0.0));
+    assert_eq!(blend.at(GRAZING_COS), (2, 1.0));
+    assert_eq!(blend.at(0.0), (2, 1.0));
+    assert_eq!(blend.at(f32::NAN), (0, 0.0));
+    assert_eq!(ThetaOBlend::new(&[0.0]).at(0.5), (0, 0.0));
+    // Halfway in cos θ_o between breakpoints 1 and 2.
+    let z = 0.5 * (cos[1] + cos[2]);
+    let (k, t) = blend.at(z);
+    assert_eq!(k, 1);
+    assert!((t - 0.5).abs() < 1e-5, "{t}");
+    assert!((t - cos_weight(cos[1], cos[2], z)).abs() < 1e-6);
+    // The weight of each slice on either side of breakpoint 1.
+    let weights = |z: f32| {
+        let (k, t) = blend.at(z);
+        let mut w = [0.0f32; 4];
+        w[k] += 1.0 - t;
+        w[k + 1] += t;
+        w
+    };
+    for (a, b) in weights(cos[1] + 1e-6).iter().zip(weights(cos[1] - 1e-6)) {
+        assert!((a - b).abs() < 1e-3, "{a} {b}");
+    }
+    let at = weights(cos[1]);
+    assert!((at[1] - 1.0).abs() < 1e-5, "{at:?}");
+}
+
+/// Under the cap, a capped build lowers its tolerance while it still fits:
+/// it ends at or below the cap, with a lower tolerance than it started
+/// from, and one more step down would not fit (or the tries are spent).
+#[test]
+fn room_under_the_cap_is_spent_on_variance() {
+    let res: Resolution = "8x1x64x16".parse().unwrap();
+    let mut builder = OutgoingBuilder::by_name("chi2", Some(4e-2), 32).unwrap();
+    let free = OutgoingSampler::new(nickel(), res, builder.clone()).unwrap();
+    let cap = 2 * free.storage_bytes();
+    builder.max_bytes = Some(cap);
+    let filled = OutgoingSampler::new(nickel(), res, builder.clone()).unwrap();
+    assert!(filled.storage_bytes() <= cap);
+    assert!(filled.storage_bytes() > free.storage_bytes());
+    let tolerance = filled.builder().tolerance;
+    assert!(tolerance < 4e-2, "{tolerance}");
+    let lowest = 4e-2 / FILL_STEP.powi(FILL_TRIES as i32);
+    if tolerance > lowest * 1.0001 {
+        let mut finer = filled.builder().clone();
+        finer.max_bytes = None;
+        finer.tolerance /= FILL_STEP;
+        finer.budget /= FILL_STEP;
+        let next = OutgoingSampler::new(nickel(), res, finer).unwrap();
+        assert!(next.storage_bytes() > cap);
+    }
+}
+
+/// A file of layout 1 (blends linear in u_o) is refused with a typed error
+/// that says to build the sampler again.
+#[test]
+fn layout_one_is_refused() {
+    let s = small(nickel());
+    let e = OutgoingSampler::from_bytes(&s.to_bytes_as(1))
+        .err()
+        .expect("layout 1 is refused");
+    assert!(e.to_string().contains("build the sampler again"), "{e}");
+    assert!(OutgoingSampler::from_bytes(&s.to_bytes_as(persist::OUTGOING_VERSION)).is_ok());
+}
