@@ -27,7 +27,7 @@
 //! weights are continuous and equal 0 or 1 at the breakpoints). The weight
 //! is linear in cos θ_o rather than in u_o, the variable the breakpoints
 //! are spaced in, so that k and t follow from wo.z by compares with the
-//! breakpoints' cosines and one product ([`ThetaOBlend`]): no arctangent
+//! breakpoints' cosines and one product (`ThetaOBlend`): no arctangent
 //! or square root stands between wo and the first table read of a call
 //! (`acdf bench --material nbrdf:nickel`: `sample` 410 to 316 cycles per
 //! call, `pdf` 317 to 281, against u_o-linear weights). The
