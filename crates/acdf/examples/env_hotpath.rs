@@ -1,0 +1,74 @@
+//! A driver for instruction counts of an environment sampler's `sample`,
+//! which are repeatable on a loaded machine where timings are not (the
+//! environment counterpart of the `hotpath` example).
+//!
+//! `env_hotpath MAP SAMPLER N RUN` builds SAMPLER (any name of `acdf
+//! env-sample --help`, default options) over the lat-long map MAP, builds
+//! the normal cells the normals of `acdf env-report` need, then makes N
+//! calls of `sample` in the function `hot_env`, one per uniform pair, the
+//! normal cycling through those normals and held for RUN consecutive
+//! calls (RUN = 0: no normal, the plain luminance table of an
+//! orientation-aware sampler). For callgrind to count:
+//!
+//! ```sh
+//! cargo build --release -p acdf --example env_hotpath
+//! valgrind --tool=callgrind --toggle-collect='*hot_env*' \
+//!   target/release/examples/env_hotpath ../shared/data/envmaps/rooitou_park_1k.hdr \
+//!   oriented:dp 200000 64
+//! callgrind_annotate --inclusive=yes callgrind.out.*
+//! ```
+use acdf::env_registry::{make_env_sampler, EnvSamplerOptions};
+use acdf::lights::EnvMap;
+use acdf_core::{SphereSampler, Vec2, Vec3};
+use rand::{Rng, SeedableRng};
+use std::hint::black_box;
+use std::sync::Arc;
+
+/// `sample` for each pair, the normal `normals[(i / run) % len]` (none for
+/// `run` = 0); the sum of the densities.
+#[inline(never)]
+fn hot_env<S: SphereSampler>(s: &S, normals: &[Vec3], u: &[Vec2], run: usize) -> f32 {
+    let mut total = 0.0;
+    for (i, &u) in u.iter().enumerate() {
+        let normal = (run > 0).then(|| normals[(i / run.max(1)) % normals.len()]);
+        if let Some(d) = s.sample(black_box(normal), black_box(u)) {
+            total += d.pdf;
+        }
+    }
+    total
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() != 5 {
+        eprintln!("usage: env_hotpath MAP SAMPLER N RUN");
+        std::process::exit(2);
+    }
+    let map = match EnvMap::open(std::path::Path::new(&args[1])) {
+        Ok(m) => Arc::new(m),
+        Err(e) => {
+            eprintln!("{}: {e}", args[1]);
+            std::process::exit(1);
+        }
+    };
+    let s = match make_env_sampler(&args[2], &map, &EnvSamplerOptions::default()) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("{}: {e}", args[2]);
+            std::process::exit(1);
+        }
+    };
+    let (Ok(n), Ok(run)) = (args[3].parse::<usize>(), args[4].parse::<usize>()) else {
+        eprintln!("N and RUN are counts");
+        std::process::exit(2);
+    };
+    let normals = acdf::env_report::standard_normals();
+    for &normal in &normals {
+        s.pdf(Some(normal), Vec3::Z);
+    }
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+    let u: Vec<Vec2> = (0..n)
+        .map(|_| Vec2::new(rng.random(), rng.random()))
+        .collect();
+    println!("density sum {}", hot_env(&s, &normals, &u, run));
+}
