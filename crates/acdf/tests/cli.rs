@@ -868,28 +868,22 @@ fn render_equal_time_runs_at_least_one_pass() {
         dir.path().to_str().unwrap(),
     ]);
     assert_one_line_error(&o, "mis-one-sample");
-    for c in ["1.5", "-0.1", "NaN"] {
-        let c = format!("--mis-fraction={c}");
+    for (arg, named) in [
+        ("--mis-fraction=1.5", "mis-fraction"),
+        ("--mis-fraction=-0.1", "mis-fraction"),
+        ("--mis-fraction=NaN", "mis-fraction"),
+        ("--timing-repeats=0", "timing-repeats"),
+    ] {
         let o = acdf(&[
             "render",
             "--material",
             "builtin:lambert",
-            &c,
+            arg,
             "--out",
             dir.path().to_str().unwrap(),
         ]);
-        assert_one_line_error(&o, "mis-fraction");
+        assert_one_line_error(&o, named);
     }
-    let o = acdf(&[
-        "render",
-        "--material",
-        "builtin:lambert",
-        "--timing-repeats",
-        "0",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert_one_line_error(&o, "timing-repeats");
 }
 
 #[test]

@@ -235,7 +235,7 @@ struct ThetaOBlend {
 impl ThetaOBlend {
     /// The blend of the breakpoints `u` (u_o, increasing from 0 to 1).
     fn new(u: &[f32]) -> Self {
-        let cos: Vec<f32> = u.iter().map(|&u| outgoing_at(u).z).collect();
+        let cos = cos_theta_o(u);
         let inner = cos.len().saturating_sub(2);
         let mut negative_inner_cos: Vec<f32> = cos[1..1 + inner].iter().map(|&c| -c).collect();
         negative_inner_cos.resize(inner.div_ceil(8).max(1) * 8, f32::INFINITY);
@@ -281,6 +281,11 @@ impl ThetaOBlend {
     }
 }
 
+/// cos θ_o of the nodes `u` (u_o), as [`outgoing_at`] places them.
+fn cos_theta_o(u: &[f32]) -> Vec<f32> {
+    u.iter().map(|&u| outgoing_at(u).z).collect()
+}
+
 /// θ_o of the fine node u (the grazing end at cos θ_o = [`GRAZING_COS`]).
 pub(crate) fn outgoing_at(u: f32) -> Vec3 {
     let theta = FRAC_PI_2 * u * u;
@@ -311,7 +316,7 @@ pub(crate) fn blend_divergence(p: &[f32], a: &[f32], b: &[f32], t: f32) -> f64 {
 /// documentation.
 fn choose_breakpoints(p: &[Vec<f32>], u: &[f32], budget: f64) -> Vec<usize> {
     let n = p.len();
-    let cos: Vec<f32> = u.iter().map(|&u| outgoing_at(u).z).collect();
+    let cos = cos_theta_o(u);
     let fits = |a: usize, b: usize| {
         ((a + 1)..b).into_par_iter().all(|j| {
             let t = cos_weight(cos[a], cos[b], cos[j]);

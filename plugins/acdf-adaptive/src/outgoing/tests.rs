@@ -190,7 +190,7 @@ fn batch_forms_equal_single_calls() {
 fn blend_weights_follow_cos_theta_o() {
     let u = [0.0, 0.3, 0.7, 1.0];
     let blend = ThetaOBlend::new(&u);
-    let cos: Vec<f32> = u.iter().map(|&u| outgoing_at(u).z).collect();
+    let cos = cos_theta_o(&u);
     assert_eq!(blend.at(1.0), (0, 0.0));
     assert_eq!(blend.at(GRAZING_COS), (2, 1.0));
     assert_eq!(blend.at(0.0), (2, 1.0));
