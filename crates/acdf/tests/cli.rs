@@ -771,12 +771,14 @@ fn render_writes_every_strategy_and_caches_the_reference() {
             "light",
             "mis-balance",
             "mis-power",
-            "mis-one-sample"
+            "mis-one-sample",
+            "mis-adaptive"
         ],
         "{out}"
     );
     assert_eq!(rows[2][1], "uniform+uniform-comp");
     assert_eq!(rows[4][1], "uniform+uniform-comp c=0.5");
+    assert_eq!(rows[5][1], "uniform+uniform-comp c per pixel");
     for r in &rows {
         let rmse: f64 = r[4].parse().unwrap();
         assert!(rmse.is_finite() && rmse > 0.0, "{r:?}");
@@ -784,7 +786,7 @@ fn render_writes_every_strategy_and_caches_the_reference() {
     // The modelled equal-CPU-time table: the RMSE at 2 spp scaled by the
     // samples one thread renders in 1 s.
     let cpu = render_rows(&out, "equal CPU time");
-    assert_eq!(cpu.len(), 5, "{out}");
+    assert_eq!(cpu.len(), 6, "{out}");
     for (r, e) in cpu.iter().zip(&rows) {
         let (spp, rmse, rate): (f64, f64, f64) = (
             r[2].parse().unwrap(),
@@ -808,6 +810,7 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         "mis-balance",
         "mis-power",
         "mis-one-sample",
+        "mis-adaptive",
     ] {
         let img = image::open(dir.path().join(format!("blue-metallic-paint-{name}.png"))).unwrap();
         assert_eq!((img.width(), img.height()), (24, 16), "{name}");
@@ -818,7 +821,7 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         }
     }
     let side = image::open(dir.path().join("blue-metallic-paint-side-by-side.png")).unwrap();
-    assert_eq!(side.width(), 6 * 24 + 5 * 4);
+    assert_eq!(side.width(), 7 * 24 + 6 * 4);
     assert!(side.height() > 2 * 16);
     let svg =
         std::fs::read_to_string(dir.path().join("blue-metallic-paint-convergence.svg")).unwrap();

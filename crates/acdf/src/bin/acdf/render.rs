@@ -110,8 +110,11 @@ fn strategies_help() -> String {
         "Strategies, comma-separated: {}. brdf and light draw from one sampler; \
          mis-balance and mis-power draw once from each and weigh the two by their heuristic; \
          mis-one-sample draws once, from the BRDF sampler with probability --mis-fraction, \
-         and divides by the mixture density",
-        Strategy::all_names().replace(',', ", ")
+         and divides by the mixture density; mis-adaptive is mis-one-sample with c chosen per \
+         pixel, among {}, as the one whose second moment the pixel's earlier samples estimate \
+         the least",
+        Strategy::all_names().replace(',', ", "),
+        acdf::render::FRACTIONS.map(|c| c.to_string()).join(", ")
     )
 }
 
@@ -231,6 +234,11 @@ fn run_scene(
     let samplers_of = |s: Strategy| match s {
         Strategy::Brdf => a.brdf_sampler.clone(),
         Strategy::Light => light.sampler().name().to_string(),
+        Strategy::Adaptive => format!(
+            "{}+{} c per pixel",
+            a.brdf_sampler,
+            mis_light.sampler().name()
+        ),
         Strategy::OneSample => format!(
             "{}+{} c={}",
             a.brdf_sampler,
@@ -301,8 +309,13 @@ fn run_scene(
         );
         pb.finish_and_clear();
         // After the render, so that tables built on first use are built.
-        let seconds_per_sample =
-            shader(strategy).seconds_per_camera_sample(&camera, size, a.seed, a.timing_repeats);
+        let seconds_per_sample = shader(strategy).seconds_per_camera_sample(
+            &camera,
+            size,
+            a.seed,
+            a.timing_repeats,
+            Some(r.last.moments()),
+        );
         let rmse_at_spp = r.at_spp.rmse(&reference).unwrap_or(f64::NAN);
         let rmse_last = r.last.rmse(&reference).unwrap_or(f64::NAN);
         results.push(Result1 {
