@@ -1018,7 +1018,7 @@ mod tests {
     use super::*;
     use acdf_lights::{EnvMap, EnvironmentLight, TableKind};
     use acdf_materials::analytic::Lambert;
-    use acdf_uniform::uniform_env_sampler;
+    use acdf_uniform::{uniform_env_sampler, UniformEnvSampler};
     use std::sync::Arc;
 
     /// The sky of the unbiasedness test: radiance `SKY` above the horizon,
@@ -1281,17 +1281,20 @@ mod tests {
         }
     }
 
+    /// A Lambertian material of albedo [`ALBEDO`] and `map` as a light
+    /// sampled by its plain luminance table.
+    fn lambert_under(map: Arc<EnvMap>) -> (Lambert, EnvironmentLight<UniformEnvSampler>) {
+        let lambert = Lambert::new("l", Rgb::splat(ALBEDO)).unwrap();
+        let table = uniform_env_sampler(&map, TableKind::Luminance).unwrap();
+        (lambert, EnvironmentLight::new(map, table))
+    }
+
     /// The one-sample strategy at c = 1 is BRDF sampling and at c = 0 light
     /// sampling, value for value: the same estimates from the same uniform
     /// numbers (it stretches its selecting number back to [0, 1)).
     #[test]
     fn one_sample_at_c_0_and_1_is_the_single_strategy() {
-        let map = split_map();
-        let lambert = Lambert::new("l", Rgb::splat(ALBEDO)).unwrap();
-        let light = EnvironmentLight::new(
-            map.clone(),
-            uniform_env_sampler(&map, TableKind::Luminance).unwrap(),
-        );
+        let (lambert, light) = lambert_under(split_map());
         let surface = Surface {
             brdf: &lambert,
             sampler: &acdf_cosine::CosineSampler,
@@ -1463,11 +1466,7 @@ mod tests {
     #[test]
     fn adaptive_fraction_finds_the_exact_technique() {
         let map = Arc::new(EnvMap::from_fn(32, 16, |_, _| Rgb::splat(1.0)).unwrap());
-        let lambert = Lambert::new("l", Rgb::splat(ALBEDO)).unwrap();
-        let light = EnvironmentLight::new(
-            map.clone(),
-            uniform_env_sampler(&map, TableKind::Luminance).unwrap(),
-        );
+        let (lambert, light) = lambert_under(map);
         let surface = Surface {
             brdf: &lambert,
             sampler: &acdf_cosine::CosineSampler,
