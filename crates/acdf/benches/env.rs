@@ -11,7 +11,12 @@
 //!
 //! ```sh
 //! cargo bench -p acdf --bench env
+//! ACDF_ENV_TOLERANCE=4e-3 cargo bench -p acdf --bench env -- oriented
 //! ```
+//!
+//! `ACDF_ENV_TOLERANCE` sets the simplifier tolerance of the adaptive and
+//! oriented environment samplers (`--tolerance` of `acdf env-report`;
+//! default: the simplifier's own).
 
 use std::hint::black_box;
 use std::sync::Arc;
@@ -61,10 +66,17 @@ fn env(c: &mut Criterion) {
     let (label, map) = map();
     let u = uniforms(1);
     let normals: Vec<Vec3> = acdf::env_report::standard_normals();
+    let options = EnvSamplerOptions {
+        tolerance: std::env::var("ACDF_ENV_TOLERANCE").ok().map(|t| {
+            t.parse()
+                .expect("ACDF_ENV_TOLERANCE: a positive number, e.g. 4e-3")
+        }),
+        ..EnvSamplerOptions::default()
+    };
     let mut group = c.benchmark_group(format!("env_sample_{label}"));
     group.throughput(Throughput::Elements(CALLS as u64));
     for name in ["uniform", "adaptive:dp", "adaptive:chi2", "oriented:dp"] {
-        let s = make_env_sampler(name, &map, &EnvSamplerOptions::default()).expect("builds");
+        let s = make_env_sampler(name, &map, &options).expect("builds");
         // Build the cells the normals need before timing.
         for &n in &normals {
             s.pdf(Some(n), Vec3::Z);
