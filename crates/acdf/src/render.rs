@@ -456,6 +456,17 @@ impl Shader<'_> {
         v
     }
 
+    /// The fraction each pixel of an image of `width` columns draws with
+    /// in a pass that starts from `moments`: [`pooled_fractions`] for
+    /// [`Strategy::Adaptive`], [`Shader::mis_fraction`] otherwise.
+    fn fractions(&self, moments: &[FractionMoments], width: usize) -> Vec<f32> {
+        if self.strategy == Strategy::Adaptive {
+            pooled_fractions(moments, width, self.mis_fraction)
+        } else {
+            vec![self.mis_fraction; moments.len()]
+        }
+    }
+
     /// One estimate along the ray (`o`, `d`), the one-sample strategies
     /// drawing from the BRDF sampler with probability `c`; with the BRDF
     /// and light densities of the drawn direction for those strategies
@@ -630,7 +641,7 @@ impl Shader<'_> {
         for _ in 0..repeats.max(1) {
             let mut acc = Rgb::ZERO;
             let mut moments = start_moments.clone();
-            let fractions = pooled_fractions(&moments, width, self.mis_fraction);
+            let fractions = self.fractions(&moments, width);
             let start = crate::efficiency::thread_seconds();
             for round in 0..rounds {
                 for pixel in 0..pixels {
@@ -789,11 +800,7 @@ impl Film {
     pub fn add_pass(&mut self, shader: &Shader, camera: &Camera, seed: u64, pass: u64, spp: usize) {
         let (width, height) = (self.width, self.height);
         let aspect = width as f32 / height.max(1) as f32;
-        let fractions = if shader.strategy == Strategy::Adaptive {
-            pooled_fractions(&self.moments, width, shader.mis_fraction)
-        } else {
-            vec![shader.mis_fraction; self.moments.len()]
-        };
+        let fractions = shader.fractions(&self.moments, width);
         self.sums
             .par_chunks_mut(width.max(1))
             .zip(self.squares.par_chunks_mut(width.max(1)))
