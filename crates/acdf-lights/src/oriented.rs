@@ -13,12 +13,12 @@
 //!
 //! A normal draws from its region's table alone, and the density is that
 //! table's: one table searched per draw, whose density comes with the
-//! draw, so a call costs finding the normal's region (its row, and its
-//! column by an arctangent) and a draw from one table. The
-//! estimator is unbiased for every normal because the table covers every
-//! texel the normal sees. An optional defensive share mixes in the plain
-//! luminance table (the mixture's density then needs one lookup in the
-//! table that was not drawn from).
+//! draw, so a call costs finding the normal's region (its row from z, its
+//! column from a table of bins of a stand-in for its azimuth) and a draw
+//! from one table. The estimator is unbiased for every normal because the
+//! table covers every texel the normal sees. An optional defensive share
+//! mixes in the plain luminance table (the mixture's density then needs
+//! one lookup in the table that was not drawn from).
 
 use std::sync::{Arc, OnceLock};
 
@@ -27,7 +27,7 @@ use acdf_core::{
     ONE_MINUS_EPSILON,
 };
 
-use acdf_core::fast::{fast_atan2, grid_cell};
+use acdf_core::fast::grid_cell;
 
 use crate::envmap::EnvMap;
 use crate::sampler::{finish_draw, TableBuilder};
@@ -106,7 +106,7 @@ impl NormalGrid {
 
     /// The node whose region holds the unit normal `n`: a polar cap's node
     /// within the cap, else the cell of n's row (in z) and column (in φ).
-    #[inline]
+    /// For one-off queries: it builds the lookup a sampler keeps.
     pub fn node_of(&self, n: Vec3) -> usize {
         NodeLocator::new(*self).node_of(n)
     }
@@ -147,32 +147,111 @@ impl NormalGrid {
     }
 }
 
+/// A stand-in for the azimuth φ of (x, y) that needs no arctangent: with
+/// a = min(|x|, |y|) / max(|x|, |y|), the tangent of the angle to the
+/// nearest axis, it is a on [0, π/4), 2 − a on [π/4, π/2), 2 + a on
+/// [π/2, 3π/4), and so on around to 8 − a just below 2π: continuous and
+/// increasing in φ over [0, 2π), from 0 to 8, at a rate between 1 and 2
+/// per radian. One division and three selects, where an arctangent adds
+/// a polynomial to the division. (0, 0), NaN and infinite inputs give a
+/// finite value.
+#[inline(always)]
+fn pseudo_azimuth(x: f32, y: f32) -> f32 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let a = ax.min(ay) / ax.max(ay);
+    // NaN (0/0, ∞/∞, a NaN input) fails the comparison and becomes 0.
+    let a = if a >= 0.0 { a.min(1.0) } else { 0.0 };
+    let r = if ay > ax { 2.0 - a } else { a };
+    let r = if x < 0.0 { 4.0 - r } else { r };
+    if y < 0.0 {
+        8.0 - r
+    } else {
+        r
+    }
+}
+
+/// One bin of the column lookup: the column at the bin's start, and the
+/// pseudo-azimuth of the one column boundary inside the bin (infinite if
+/// none).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ColumnBin {
+    column: u32,
+    boundary: f32,
+}
+
 /// [`NormalGrid::node_of`] with the grid's constants converted once: what
 /// a sampler keeps to find a normal's node on every call.
-#[derive(Debug, Clone, Copy)]
+///
+/// The column is found from the [`pseudo_azimuth`] p of the normal: p is
+/// cut into bins of width 1/B, B the power of two at or above the column
+/// count, and each bin stores the column where it starts and the boundary
+/// of the next column if that falls inside the bin. Column boundaries are
+/// 2π/C apart in φ, so at least 2π/C > 1/B apart in p: a bin holds at
+/// most one, and one comparison finishes the lookup. p B is exact (B is a
+/// power of two), so a p always lands in the bin whose range holds it.
+#[derive(Debug, Clone)]
 struct NodeLocator {
     /// z at and above which a normal is in the north cap (−cap: south).
     cap: f32,
     /// R / 2: the row of z is ⌊(1 − z) R / 2⌋.
     half_rows: f32,
     last_row: f32,
-    columns: f32,
-    last_column: f32,
+    /// Bins per unit of pseudo-azimuth (B).
+    bin_scale: f32,
+    last_bin: f32,
+    bins: Box<[ColumnBin]>,
     column_count: usize,
     cells: usize,
 }
 
 impl NodeLocator {
     fn new(grid: NormalGrid) -> NodeLocator {
+        let columns = grid.columns;
+        // The pseudo-azimuths of the boundaries between columns c − 1 and
+        // c, c = 1 .. C − 1, increasing.
+        let boundaries: Vec<f32> = (1..columns)
+            .map(|c| {
+                let phi = std::f64::consts::TAU * c as f64 / columns as f64;
+                pseudo_azimuth(phi.cos() as f32, phi.sin() as f32)
+            })
+            .collect();
+        let per_unit = columns.next_power_of_two();
+        let bin_scale = per_unit as f32;
+        let bins: Box<[ColumnBin]> = (0..8 * per_unit)
+            .map(|b| {
+                let (lo, hi) = (b as f32 / bin_scale, (b + 1) as f32 / bin_scale);
+                let column = boundaries.partition_point(|&p| p <= lo);
+                let boundary = boundaries
+                    .get(column)
+                    .copied()
+                    .filter(|&p| p < hi)
+                    .unwrap_or(f32::INFINITY);
+                debug_assert!(boundaries.get(column + 1).is_none_or(|&p| p >= hi));
+                ColumnBin {
+                    column: column as u32,
+                    boundary,
+                }
+            })
+            .collect();
         NodeLocator {
             cap: grid.cap_z() as f32,
             half_rows: 0.5 * grid.rows as f32,
             last_row: (grid.rows - 1) as f32,
-            columns: grid.columns as f32,
-            last_column: (grid.columns - 1) as f32,
-            column_count: grid.columns,
+            bin_scale,
+            last_bin: (bins.len() - 1) as f32,
+            bins,
+            column_count: columns,
             cells: grid.cell_count(),
         }
+    }
+
+    /// The column of the azimuth of (x, y): the number of column
+    /// boundaries at or below its pseudo-azimuth.
+    #[inline(always)]
+    fn column_of(&self, x: f32, y: f32) -> usize {
+        let p = pseudo_azimuth(x, y);
+        let bin = self.bins[grid_cell(p * self.bin_scale, self.last_bin)];
+        bin.column as usize + (p >= bin.boundary) as usize
     }
 
     /// The node of the unit normal `n`: the cell of its row and column, or
@@ -181,11 +260,7 @@ impl NodeLocator {
     #[inline(always)]
     fn node_of(&self, n: Vec3) -> usize {
         let r = grid_cell((1.0 - n.z) * self.half_rows, self.last_row);
-        // φ in turns, to within 4e-7 rad (inside the radius's margin).
-        let t = fast_atan2(n.y, n.x) * (0.5 * std::f32::consts::FRAC_1_PI);
-        let t = if t < 0.0 { t + 1.0 } else { t };
-        let c = grid_cell(t * self.columns, self.last_column);
-        let cell = r * self.column_count + c;
+        let cell = r * self.column_count + self.column_of(n.x, n.y);
         let north = (n.z >= self.cap) as usize;
         let south = (n.z <= -self.cap) as usize;
         let polar = self.cells + south;
@@ -197,14 +272,26 @@ impl NodeLocator {
     }
 }
 
+/// The largest |‖n‖² − 1| of a normal taken as already unit length: a few
+/// hundred times the rounding of a normalised `f32` vector, and so small
+/// that the normal's angles move by under 1e-5 rad, far inside the
+/// regions' margin.
+const UNIT_SLACK: f32 = 1e-5;
+
 /// `acdf_core::usable_normal` (the normal scaled to unit length, `None`
-/// for one that is not finite or has no length), with its test on the
-/// squared length as one integer compare: the bit patterns of the positive
-/// finite floats are 1 ..= 0x7f7f_ffff.
+/// for one that is not finite or has no length), except that a normal
+/// within [`UNIT_SLACK`] of unit length is returned as it is: renderers
+/// pass unit normals, and for them the square root and the division leave
+/// the chain of dependent steps of a draw (the branch is predicted). The
+/// test on the squared length is one integer compare: the bit patterns of
+/// the positive finite floats are 1 ..= 0x7f7f_ffff.
 #[inline(always)]
 fn unit_normal(normal: Option<Vec3>) -> Option<Vec3> {
     let n = normal?;
     let len2 = n.length_squared();
+    if (len2 - 1.0).abs() <= UNIT_SLACK {
+        return Some(n);
+    }
     (len2.to_bits().wrapping_sub(1) < 0x7f7f_ffff).then(|| n / len2.sqrt())
 }
 
@@ -437,10 +524,25 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
 mod tests {
     use super::*;
 
-    /// The one-compare test of `unit_normal` agrees with
-    /// `acdf_core::usable_normal` bit for bit.
+    /// `unit_normal` agrees with `acdf_core::usable_normal` bit for bit,
+    /// except that a normal within `UNIT_SLACK` of unit length comes back
+    /// as given.
     #[test]
     fn unit_normals_agree_with_usable_normal() {
+        for n in [
+            Vec3::new(0.6, 0.8, 0.0),
+            Vec3::new(0.36, 0.48, 0.8),
+            Vec3::new(0.0, 0.0, 1.000_004),
+            Vec3::new(0.0, -0.999_996, 0.0),
+        ] {
+            assert_eq!(unit_normal(Some(n)), Some(n));
+            let u = acdf_core::usable_normal(Some(n)).unwrap();
+            assert!((u - n).abs().max_element() <= 5e-6, "{n} {u}");
+        }
+        assert_ne!(
+            unit_normal(Some(Vec3::new(0.0, 0.0, 1.000_1))),
+            Some(Vec3::new(0.0, 0.0, 1.000_1))
+        );
         let values = [
             0.0,
             -0.0,
@@ -459,7 +561,12 @@ mod tests {
         for &x in &values {
             for &y in &values {
                 for &z in &values[..6] {
-                    let n = Some(Vec3::new(x, y, z));
+                    let v = Vec3::new(x, y, z);
+                    let n = Some(v);
+                    if (v.length_squared() - 1.0).abs() <= UNIT_SLACK {
+                        assert_eq!(unit_normal(n), n);
+                        continue;
+                    }
                     let (a, b) = (unit_normal(n), acdf_core::usable_normal(n));
                     assert_eq!(
                         a.map(|v| v.to_array().map(f32::to_bits)),
@@ -470,6 +577,46 @@ mod tests {
             }
         }
         assert_eq!(unit_normal(None), None);
+    }
+
+    /// The column lookup by pseudo-azimuth gives the column of φ computed
+    /// in f64, except within 1e-5 rad of a column boundary (where either
+    /// side is inside the regions' margin), for column counts that are and
+    /// are not powers of two, on a lattice of azimuths that includes every
+    /// boundary and the points a float step either side of it, and at the
+    /// axes and the diagonals.
+    #[test]
+    fn columns_by_pseudo_azimuth_match_the_azimuth() {
+        let tau = std::f64::consts::TAU;
+        for cols in [1usize, 2, 3, 5, 8, 12, 32, 33, 100, 1024, 65536] {
+            let locator = NodeLocator::new(NormalGrid::new(1, cols).unwrap());
+            let mut phis: Vec<f64> = (0..=4000).map(|k| tau * k as f64 / 4000.0).collect();
+            for c in 0..=cols.min(2000) {
+                let b = tau * c as f64 / cols as f64;
+                phis.extend([b - 1e-6, b, b + 1e-6]);
+            }
+            phis.extend((0..8).map(|k| tau * k as f64 / 8.0));
+            for phi in phis {
+                let (x, y) = (phi.cos() as f32, phi.sin() as f32);
+                let got = locator.column_of(x, y);
+                let exact = (y as f64).atan2(x as f64).rem_euclid(tau);
+                let want = ((exact / tau * cols as f64).floor() as usize).min(cols - 1);
+                if got != want {
+                    // Only next to a boundary, and then a neighbour.
+                    let t = exact / tau * cols as f64;
+                    let off = (t - t.round()).abs() * tau / cols as f64;
+                    let neighbour = (got + 1) % cols == want || (want + 1) % cols == got;
+                    assert!(
+                        off < 1e-5 && neighbour,
+                        "{cols} columns, φ = {phi}: column {got}, want {want}"
+                    );
+                }
+            }
+            // Finite columns for the inputs a sampler never passes.
+            for (x, y) in [(0.0, 0.0), (f32::NAN, 1.0), (f32::INFINITY, f32::INFINITY)] {
+                assert!(locator.column_of(x, y) < cols);
+            }
+        }
     }
 
     /// Every normal's node is within the node's radius of it; the poles
