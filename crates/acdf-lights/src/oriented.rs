@@ -106,9 +106,21 @@ impl NormalGrid {
 
     /// The node whose region holds the unit normal `n`: a polar cap's node
     /// within the cap, else the cell of n's row (in z) and column (in φ).
-    /// For one-off queries: it builds the lookup a sampler keeps.
+    /// The same node a sampler over this grid finds, by a binary search
+    /// over the column boundaries instead of the sampler's table of bins.
     pub fn node_of(&self, n: Vec3) -> usize {
-        NodeLocator::new(*self).node_of(n)
+        let p = pseudo_azimuth(n.x, n.y);
+        let (mut lo, mut hi) = (0, self.columns - 1);
+        // The column is the number of boundaries 1 ..= C − 1 at or below p.
+        while lo < hi {
+            let mid = (lo + hi).div_ceil(2);
+            if column_boundary(mid, self.columns) <= p {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+        NodeLocator::scalars(*self).node_at(n, lo)
     }
 
     /// A bound on the angle (radians) between node `i`'s normal and every
@@ -170,6 +182,13 @@ fn pseudo_azimuth(x: f32, y: f32) -> f32 {
     }
 }
 
+/// The pseudo-azimuth of the boundary between columns c − 1 and c of a
+/// grid of `columns` columns (φ = 2πc / C), increasing in c.
+fn column_boundary(c: usize, columns: usize) -> f32 {
+    let phi = std::f64::consts::TAU * c as f64 / columns as f64;
+    pseudo_azimuth(phi.cos() as f32, phi.sin() as f32)
+}
+
 /// One bin of the column lookup: the column at the bin's start, and the
 /// pseudo-azimuth of the one column boundary inside the bin (infinite if
 /// none).
@@ -179,8 +198,9 @@ struct ColumnBin {
     boundary: f32,
 }
 
-/// [`NormalGrid::node_of`] with the grid's constants converted once: what
-/// a sampler keeps to find a normal's node on every call.
+/// What a sampler keeps to find a normal's node ([`NormalGrid::node_of`])
+/// on every call: the grid's constants, converted once, and a table of
+/// bins for the column.
 ///
 /// The column is found from the [`pseudo_azimuth`] p of the normal: p is
 /// cut into bins of width 1/B, B the power of two at or above the column
@@ -207,14 +227,7 @@ struct NodeLocator {
 impl NodeLocator {
     fn new(grid: NormalGrid) -> NodeLocator {
         let columns = grid.columns;
-        // The pseudo-azimuths of the boundaries between columns c − 1 and
-        // c, c = 1 .. C − 1, increasing.
-        let boundaries: Vec<f32> = (1..columns)
-            .map(|c| {
-                let phi = std::f64::consts::TAU * c as f64 / columns as f64;
-                pseudo_azimuth(phi.cos() as f32, phi.sin() as f32)
-            })
-            .collect();
+        let boundaries: Vec<f32> = (1..columns).map(|c| column_boundary(c, columns)).collect();
         let per_unit = columns.next_power_of_two();
         let bin_scale = per_unit as f32;
         let bins: Box<[ColumnBin]> = (0..8 * per_unit)
@@ -234,13 +247,25 @@ impl NodeLocator {
             })
             .collect();
         NodeLocator {
-            cap: grid.cap_z() as f32,
-            half_rows: 0.5 * grid.rows as f32,
-            last_row: (grid.rows - 1) as f32,
             bin_scale,
             last_bin: (bins.len() - 1) as f32,
             bins,
-            column_count: columns,
+            ..NodeLocator::scalars(grid)
+        }
+    }
+
+    /// The grid's constants without the table of bins, for
+    /// [`node_at`](Self::node_at) with a column found otherwise
+    /// ([`column_of`](Self::column_of) needs the bins).
+    fn scalars(grid: NormalGrid) -> NodeLocator {
+        NodeLocator {
+            cap: grid.cap_z() as f32,
+            half_rows: 0.5 * grid.rows as f32,
+            last_row: (grid.rows - 1) as f32,
+            bin_scale: 0.0,
+            last_bin: 0.0,
+            bins: Box::new([]),
+            column_count: grid.columns,
             cells: grid.cell_count(),
         }
     }
@@ -259,8 +284,14 @@ impl NodeLocator {
     /// order, so a branch on the cap would be mispredicted).
     #[inline(always)]
     fn node_of(&self, n: Vec3) -> usize {
+        self.node_at(n, self.column_of(n.x, n.y))
+    }
+
+    /// The node of the unit normal `n` whose column is `column`.
+    #[inline(always)]
+    fn node_at(&self, n: Vec3, column: usize) -> usize {
         let r = grid_cell((1.0 - n.z) * self.half_rows, self.last_row);
-        let cell = r * self.column_count + self.column_of(n.x, n.y);
+        let cell = r * self.column_count + column;
         let north = (n.z >= self.cap) as usize;
         let south = (n.z <= -self.cap) as usize;
         let polar = self.cells + south;
@@ -619,16 +650,23 @@ mod tests {
         }
     }
 
-    /// Every normal's node is within the node's radius of it; the poles
-    /// and the caps go to the polar nodes; a cell's centre to its cell.
+    /// Every normal's node, as a sampler finds it, is within the node's
+    /// radius of it, and `NormalGrid::node_of` finds the same node; the
+    /// poles and the caps go to the polar nodes; a cell's centre to its
+    /// cell.
     #[test]
     fn every_normal_is_within_its_nodes_radius() {
         for (rows, cols) in [(1, 1), (1, 2), (4, 6), (8, 16), (16, 32)] {
             let g = NormalGrid::new(rows, cols).unwrap();
-            assert_eq!(g.node_of(Vec3::Z), g.cell_count());
-            assert_eq!(g.node_of(-Vec3::Z), g.cell_count() + 1);
+            let locator = NodeLocator::new(g);
+            assert_eq!(locator.node_of(Vec3::Z), g.cell_count());
+            assert_eq!(locator.node_of(-Vec3::Z), g.cell_count() + 1);
             for i in 0..g.cell_count() {
-                assert_eq!(g.node_of(g.node_normal(i)), i, "{rows}x{cols} cell {i}");
+                assert_eq!(
+                    locator.node_of(g.node_normal(i)),
+                    i,
+                    "{rows}x{cols} cell {i}"
+                );
             }
             // A fine lattice over (z, φ), with the seam, the cap edges and
             // the row edges.
@@ -638,7 +676,8 @@ mod tests {
                 for b in 0..=steps {
                     let phi = std::f64::consts::TAU * b as f64 / steps as f64;
                     let n = unit(z, phi).normalize();
-                    let i = g.node_of(n);
+                    let i = locator.node_of(n);
+                    assert_eq!(g.node_of(n), i, "{rows}x{cols}: {n}");
                     assert!(i < g.node_count());
                     let angle = (g.node_normal(i).dot(n) as f64).clamp(-1.0, 1.0).acos();
                     assert!(
