@@ -120,7 +120,7 @@ impl NormalGrid {
                 hi = mid - 1;
             }
         }
-        NodeLocator::scalars(*self).node_at(n, lo)
+        RowLocator::new(*self).node_at(n, lo)
     }
 
     /// A bound on the angle (radians) between node `i`'s normal and every
@@ -198,9 +198,7 @@ struct ColumnBin {
     boundary: f32,
 }
 
-/// What a sampler keeps to find a normal's node ([`NormalGrid::node_of`])
-/// on every call: the grid's constants, converted once, and a table of
-/// bins for the column.
+/// The column lookup of a [`NodeLocator`].
 ///
 /// The column is found from the [`pseudo_azimuth`] p of the normal: p is
 /// cut into bins of width 1/B, B the power of two at or above the column
@@ -210,23 +208,16 @@ struct ColumnBin {
 /// most one, and one comparison finishes the lookup. p B is exact (B is a
 /// power of two), so a p always lands in the bin whose range holds it.
 #[derive(Debug, Clone)]
-struct NodeLocator {
-    /// z at and above which a normal is in the north cap (−cap: south).
-    cap: f32,
-    /// R / 2: the row of z is ⌊(1 − z) R / 2⌋.
-    half_rows: f32,
-    last_row: f32,
+struct ColumnBins {
     /// Bins per unit of pseudo-azimuth (B).
     bin_scale: f32,
     last_bin: f32,
     bins: Box<[ColumnBin]>,
-    column_count: usize,
-    cells: usize,
 }
 
-impl NodeLocator {
-    fn new(grid: NormalGrid) -> NodeLocator {
-        let columns = grid.columns;
+impl ColumnBins {
+    /// The bins of a grid of `columns` columns.
+    fn new(columns: usize) -> ColumnBins {
         let boundaries: Vec<f32> = (1..columns).map(|c| column_boundary(c, columns)).collect();
         let per_unit = columns.next_power_of_two();
         let bin_scale = per_unit as f32;
@@ -246,27 +237,10 @@ impl NodeLocator {
                 }
             })
             .collect();
-        NodeLocator {
+        ColumnBins {
             bin_scale,
             last_bin: (bins.len() - 1) as f32,
             bins,
-            ..NodeLocator::scalars(grid)
-        }
-    }
-
-    /// The grid's constants without the table of bins, for
-    /// [`node_at`](Self::node_at) with a column found otherwise
-    /// ([`column_of`](Self::column_of) needs the bins).
-    fn scalars(grid: NormalGrid) -> NodeLocator {
-        NodeLocator {
-            cap: grid.cap_z() as f32,
-            half_rows: 0.5 * grid.rows as f32,
-            last_row: (grid.rows - 1) as f32,
-            bin_scale: 0.0,
-            last_bin: 0.0,
-            bins: Box::new([]),
-            column_count: grid.columns,
-            cells: grid.cell_count(),
         }
     }
 
@@ -278,16 +252,36 @@ impl NodeLocator {
         let bin = self.bins[grid_cell(p * self.bin_scale, self.last_bin)];
         bin.column as usize + (p >= bin.boundary) as usize
     }
+}
 
-    /// The node of the unit normal `n`: the cell of its row and column, or
-    /// a cap's node, chosen by selects (the normals of a scene come in any
-    /// order, so a branch on the cap would be mispredicted).
-    #[inline(always)]
-    fn node_of(&self, n: Vec3) -> usize {
-        self.node_at(n, self.column_of(n.x, n.y))
+/// The grid's constants, converted once, that turn a normal and its column
+/// into its node.
+#[derive(Debug, Clone, Copy)]
+struct RowLocator {
+    /// z at and above which a normal is in the north cap (−cap: south).
+    cap: f32,
+    /// R / 2: the row of z is ⌊(1 − z) R / 2⌋.
+    half_rows: f32,
+    last_row: f32,
+    column_count: usize,
+    cells: usize,
+}
+
+impl RowLocator {
+    fn new(grid: NormalGrid) -> RowLocator {
+        RowLocator {
+            cap: grid.cap_z() as f32,
+            half_rows: 0.5 * grid.rows as f32,
+            last_row: (grid.rows - 1) as f32,
+            column_count: grid.columns,
+            cells: grid.cell_count(),
+        }
     }
 
-    /// The node of the unit normal `n` whose column is `column`.
+    /// The node of the unit normal `n` whose column is `column`: the cell
+    /// of its row and that column, or a cap's node, chosen by selects (the
+    /// normals of a scene come in any order, so a branch on the cap would
+    /// be mispredicted).
     #[inline(always)]
     fn node_at(&self, n: Vec3, column: usize) -> usize {
         let r = grid_cell((1.0 - n.z) * self.half_rows, self.last_row);
@@ -300,6 +294,29 @@ impl NodeLocator {
         } else {
             cell
         }
+    }
+}
+
+/// What a sampler keeps to find a normal's node ([`NormalGrid::node_of`])
+/// on every call: the rows' constants and the column lookup.
+#[derive(Debug, Clone)]
+struct NodeLocator {
+    rows: RowLocator,
+    columns: ColumnBins,
+}
+
+impl NodeLocator {
+    fn new(grid: NormalGrid) -> NodeLocator {
+        NodeLocator {
+            rows: RowLocator::new(grid),
+            columns: ColumnBins::new(grid.columns),
+        }
+    }
+
+    /// The node of the unit normal `n`.
+    #[inline(always)]
+    fn node_of(&self, n: Vec3) -> usize {
+        self.rows.node_at(n, self.columns.column_of(n.x, n.y))
     }
 }
 
@@ -620,7 +637,7 @@ mod tests {
     fn columns_by_pseudo_azimuth_match_the_azimuth() {
         let tau = std::f64::consts::TAU;
         for cols in [1usize, 2, 3, 5, 8, 12, 32, 33, 100, 1024, 65536] {
-            let locator = NodeLocator::new(NormalGrid::new(1, cols).unwrap());
+            let locator = ColumnBins::new(cols);
             let mut phis: Vec<f64> = (0..=4000).map(|k| tau * k as f64 / 4000.0).collect();
             for c in 0..=cols.min(2000) {
                 let b = tau * c as f64 / cols as f64;

@@ -171,6 +171,15 @@ impl FractionMoments {
     }
 }
 
+/// Pooling: the sums of `other`'s samples added to these.
+impl std::ops::AddAssign<&FractionMoments> for FractionMoments {
+    fn add_assign(&mut self, other: &FractionMoments) {
+        for (a, b) in self.sums.iter_mut().zip(&other.sums) {
+            *a += b;
+        }
+    }
+}
+
 /// The density of the one-sample mixture that draws from a density `p_f`
 /// with probability `c` and from `p_l` otherwise: c p_f + (1 − c) p_l. 0
 /// when `c` is not in [0, 1] or a density is not finite and non-negative
@@ -637,11 +646,11 @@ impl Shader<'_> {
             Some(m) if m.len() == pixels => m.to_vec(),
             _ => vec![FractionMoments::default(); pixels],
         };
+        let fractions = self.fractions(&start_moments, width);
         let mut best = f64::INFINITY;
         for _ in 0..repeats.max(1) {
             let mut acc = Rgb::ZERO;
             let mut moments = start_moments.clone();
-            let fractions = self.fractions(&moments, width);
             let start = crate::efficiency::thread_seconds();
             for round in 0..rounds {
                 for pixel in 0..pixels {
@@ -712,9 +721,7 @@ pub fn pooled_fractions(moments: &[FractionMoments], width: usize, default: f32)
         for i in 0..n {
             let mut m = FractionMoments::default();
             for k in i.saturating_sub(POOL_RADIUS)..(i + POOL_RADIUS + 1).min(n) {
-                for (a, b) in m.sums.iter_mut().zip(&src[start + k * step].sums) {
-                    *a += b;
-                }
+                m += &src[start + k * step];
             }
             dst[start + i * step] = m;
         }
@@ -1539,9 +1546,7 @@ mod tests {
                     let mut m = FractionMoments::default();
                     for yy in y.saturating_sub(r)..(y + r + 1).min(height) {
                         for xx in x.saturating_sub(r)..(x + r + 1).min(width) {
-                            for (a, b) in m.sums.iter_mut().zip(&moments[yy * width + xx].sums) {
-                                *a += b;
-                            }
+                            m += &moments[yy * width + xx];
                         }
                     }
                     assert_eq!(
