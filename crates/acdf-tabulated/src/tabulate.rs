@@ -185,7 +185,7 @@ impl HalfMap {
     /// vectorise. [`v_of`](Self::v_of) and [`jacobian`](Self::jacobian)
     /// compute both formulas and select one.
     #[inline(always)]
-    pub(crate) fn polar(&self, v: f32, outer: impl FnOnce() -> (f32, f32)) -> (f32, f32) {
+    pub fn polar(&self, v: f32, outer: impl FnOnce() -> (f32, f32)) -> (f32, f32) {
         if v >= self.v1 {
             return outer();
         }

@@ -47,6 +47,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod anisotropic;
+mod batch;
 mod packed;
 pub mod persist;
 
@@ -570,40 +571,19 @@ impl OutgoingSampler {
         }
     }
 
-    /// The blended table density at wi for a valid wo, per solid angle.
+    /// The blended table density at defined coordinates `c`.
     #[inline(always)]
-    fn table_pdf(&self, o: &Outgoing, wo: Vec3, wi: Vec3) -> f32 {
-        let sum = wi + wo;
-        let length_squared = sum.length_squared();
-        if !(length_squared > 1e-20 && length_squared.is_finite()) {
-            return 0.0;
-        }
-        let scale = length_squared.sqrt().recip();
-        let rho = sin_theta(sum);
-        let sin_h = rho * scale;
-        let wo_h = wo.dot(sum) * scale;
-        if !(wo_h > 0.0) {
-            return 0.0;
-        }
-        let v = self.map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
-        let r = o.rotation;
-        let (hx, hy) = (r.x * sum.x + r.y * sum.y, r.x * sum.y - r.y * sum.x);
-        let mut phi = fast_atan2(hy, hx);
-        if phi < 0.0 {
-            phi += TAU;
-        }
-        let x = (phi / TAU).clamp(0.0, ONE_MINUS_EPSILON);
+    fn table_pdf_at(&self, o: &Outgoing, c: &Coordinates) -> f32 {
         let (k, t) = (o.k, o.t);
         let (nx, ny) = self.cells;
         let mut p = 0.0;
         if t < 1.0 {
-            p += (1.0 - t) * self.slices[k].pdf(x, v, nx, ny);
+            p += (1.0 - t) * self.slices[k].pdf(c.x, c.v, nx, ny);
         }
         if t > 0.0 {
-            p += t * self.slices[k + 1].pdf(x, v, nx, ny);
+            p += t * self.slices[k + 1].pdf(c.x, c.v, nx, ny);
         }
-        let denominator = self.map.jacobian(v, sin_h) * 4.0 * wo_h;
-        let p = p / denominator;
+        let p = p / (self.map.jacobian(c.v, c.sin_h) * 4.0 * c.wo_h);
         if is_positive_finite(p) {
             p
         } else {
@@ -611,13 +591,13 @@ impl OutgoingSampler {
         }
     }
 
-    /// A table draw for a valid wo: wi, and the table density when the
-    /// drawn point certainly has the density `pdf` would find for wi (see
-    /// [`CELL_MARGIN`]), `None` when it must be recomputed.
+    /// The table point of a draw for a valid wo: slice k with probability
+    /// 1 - t, slice k + 1 with t (u.x decides and is rescaled), and the
+    /// blended density of the point, which the other slice's lookup
+    /// completes.
     #[inline(always)]
-    fn sample_table(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> (Vec3, Option<f32>) {
+    fn table_point(&self, o: &Outgoing, u: Vec2) -> TablePoint {
         let (k, t) = (o.k, o.t);
-        // Slice k with probability 1 - t, slice k + 1 with t.
         let (drawn, other, ux, w_drawn) = if u.x < 1.0 - t {
             (k, k + 1, u.x / (1.0 - t), 1.0 - t)
         } else {
@@ -634,23 +614,129 @@ impl OutgoingSampler {
             p_xv += w_other * o.pdf;
             same &= o.same_around;
         }
-        let (sin_h, cos_h) = self.map.angles(v);
-        let (sin_p, cos_p) = sin_cos_turns(x);
-        let r = o.rotation;
-        let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
-        let h = Vec3::new(
-            r.x * local.x - r.y * local.y,
-            r.y * local.x + r.x * local.y,
-            local.z,
-        );
-        // wo·h in the slice's axes, where wo is (sin θ_o, 0, cos θ_o): it
-        // does not wait for the rotation of h.
-        let wo_h = o.sin_o * local.x + wo.z * local.z;
-        let wi = acdf_tabulated::sampler::unit_reflection(wo, h, wo_h);
-        let geometry = (wo_h >= 0.125) & (wo_h * sin_h >= 1.0 / 512.0) & (v >= self.map.cap_top());
-        let table = p_xv / (self.map.jacobian(v, sin_h) * 4.0 * wo_h);
-        let shortcut = same & geometry & is_positive_finite(table);
-        (wi, shortcut.then_some(table))
+        TablePoint { x, v, p_xv, same }
+    }
+
+    /// A table draw for a valid wo: wi, and the table density when the
+    /// drawn point certainly has the density `pdf` would find for wi (see
+    /// [`CELL_MARGIN`]), `None` when it must be recomputed.
+    #[inline(always)]
+    fn sample_table(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> (Vec3, Option<f32>) {
+        let point = self.table_point(o, u);
+        let angles = (self.map.angles(point.v), sin_cos_turns(point.x));
+        let d = draw_at(self.map, o, wo, &point, angles);
+        (d.wi, d.shortcut.then_some(d.table))
+    }
+}
+
+/// A table draw before its geometry: the point (x, v) drawn in the unit
+/// square, its blended density there, and whether both slices are
+/// constant around it.
+#[derive(Debug, Clone, Copy, Default)]
+struct TablePoint {
+    x: f32,
+    v: f32,
+    p_xv: f32,
+    same: bool,
+}
+
+/// A table draw in the shading frame.
+#[derive(Debug, Clone, Copy, Default)]
+struct Drawn {
+    wi: Vec3,
+    /// p_xv / (J(v) · 4 (wo·h)).
+    table: f32,
+    /// Whether `table` stands for `pdf(wo, wi)` (both slices constant
+    /// around the point, and the geometry far from its singular places).
+    shortcut: bool,
+}
+
+/// The draw at `point` given its half vector's angles ((sin, cos) θ_h,
+/// (sin, cos) φ_h). Free of branches but for the ones the compiler turns
+/// into selects, so that the batch loop over a chunk of draws compiles to
+/// SIMD (`batch.rs`); the one-at-a-time path runs the same operations.
+#[inline(always)]
+fn draw_at(
+    map: HalfMap,
+    o: &Outgoing,
+    wo: Vec3,
+    point: &TablePoint,
+    ((sin_h, cos_h), (sin_p, cos_p)): ((f32, f32), (f32, f32)),
+) -> Drawn {
+    let r = o.rotation;
+    let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
+    let h = Vec3::new(
+        r.x * local.x - r.y * local.y,
+        r.y * local.x + r.x * local.y,
+        local.z,
+    );
+    // wo·h in the slice's axes, where wo is (sin θ_o, 0, cos θ_o): it
+    // does not wait for the rotation of h.
+    let wo_h = o.sin_o * local.x + wo.z * local.z;
+    let wi = acdf_tabulated::sampler::unit_reflection(wo, h, wo_h);
+    let v = point.v;
+    let geometry = (wo_h >= 0.125) & (wo_h * sin_h >= 1.0 / 512.0) & (v >= map.cap_top());
+    let table = point.p_xv / (map.jacobian(v, sin_h) * 4.0 * wo_h);
+    Drawn {
+        wi,
+        table,
+        shortcut: point.same & geometry & is_positive_finite(table),
+    }
+}
+
+/// Where the density of a wi is looked up: the table point (x, v) of its
+/// half vector, with sin θ_h and wo·h for the density's Jacobian
+/// J(v) · 4 (wo·h).
+#[derive(Debug, Clone, Copy, Default)]
+struct Coordinates {
+    x: f32,
+    v: f32,
+    sin_h: f32,
+    wo_h: f32,
+    /// The half vector defined (wi ≠ -wo, finite) and wo·h > 0.
+    defined: bool,
+}
+
+/// The coordinates of wi for wo (whose [`Outgoing`] is `o`); undefined
+/// coordinates may hold anything.
+///
+/// With `ONE` false (the batch path) free of branches like [`draw_at`], so
+/// that a loop over a chunk compiles to SIMD. With `ONE` true (one call at
+/// a time) it returns as soon as the coordinates are known to be
+/// undefined: the same operations in the same order for defined ones.
+/// Without the returns the compiler pairs the two arctangents in vector
+/// registers, and one call at a time takes about 10 instructions more per
+/// `pdf` and per `sample` (callgrind, the `hotpath` example on the
+/// built-in nickel).
+#[inline(always)]
+fn coordinates<const ONE: bool>(map: HalfMap, o: &Outgoing, wo: Vec3, wi: Vec3) -> Coordinates {
+    let sum = wi + wo;
+    let length_squared = sum.length_squared();
+    // `&` rather than `&&`: no short-circuit branches.
+    let sum_defined = (length_squared > 1e-20) & length_squared.is_finite();
+    if ONE && !sum_defined {
+        return Coordinates::default();
+    }
+    let scale = length_squared.sqrt().recip();
+    let rho = sin_theta(sum);
+    let sin_h = rho * scale;
+    let wo_h = wo.dot(sum) * scale;
+    if ONE && !(wo_h > 0.0) {
+        return Coordinates::default();
+    }
+    let v = map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
+    let r = o.rotation;
+    let (hx, hy) = (r.x * sum.x + r.y * sum.y, r.x * sum.y - r.y * sum.x);
+    let mut phi = fast_atan2(hy, hx);
+    if phi < 0.0 {
+        phi += TAU;
+    }
+    Coordinates {
+        x: (phi / TAU).clamp(0.0, ONE_MINUS_EPSILON),
+        v,
+        sin_h,
+        wo_h,
+        defined: sum_defined & (wo_h > 0.0),
     }
 }
 
@@ -662,6 +748,14 @@ struct Outgoing {
     t: f32,
     rotation: Vec2,
     sin_o: f32,
+}
+
+/// The part of the mixture a draw comes from, with u rescaled to it
+/// ([`OutgoingSampler::route`]).
+#[derive(Debug, Clone, Copy)]
+enum Route {
+    Cosine(Vec2),
+    Table(Vec2),
 }
 
 /// Whether `v` is positive (not zero) and finite: its bit pattern, less
@@ -697,24 +791,54 @@ impl OutgoingSampler {
     /// returned wi. `wo` must be valid and `o` its [`Outgoing`].
     #[inline(always)]
     fn sample_in(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        match self.route(u) {
+            Route::Cosine(u) => self.sample_cosine(o, wo, u),
+            Route::Table(u) => {
+                let (wi, table) = self.sample_table(o, wo, u);
+                self.finish_draw(o, wo, wi, table)
+            }
+        }
+    }
+
+    /// Which part of the mixture u draws from, u rescaled to it: the
+    /// cosine lobe for u.x below its fraction a, the table otherwise.
+    #[inline(always)]
+    fn route(&self, u: Vec2) -> Route {
         let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
         let a = self.cosine_fraction;
-        let (wi, table) = if u.x < a {
-            let wi = square_to_cosine_hemisphere(Vec2::new(clamp_unit(u.x / a), u.y));
-            (wi, None)
+        if u.x < a {
+            Route::Cosine(Vec2::new(clamp_unit(u.x / a), u.y))
         } else {
             let ux = if a > 0.0 {
                 clamp_unit((u.x - a) / (1.0 - a))
             } else {
                 u.x
             };
-            self.sample_table(o, wo, Vec2::new(ux, u.y))
-        };
+            Route::Table(Vec2::new(ux, u.y))
+        }
+    }
+
+    /// A draw from the cosine lobe, its density that of the mixture.
+    #[inline(always)]
+    fn sample_cosine(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        self.finish_draw(o, wo, square_to_cosine_hemisphere(u), None)
+    }
+
+    /// The draw of wi, or none below the horizon; its density from the
+    /// drawn table point where `table` has it, from `pdf` otherwise.
+    #[inline(always)]
+    fn finish_draw(
+        &self,
+        o: &Outgoing,
+        wo: Vec3,
+        wi: Vec3,
+        table: Option<f32>,
+    ) -> Option<BxdfSample> {
         if !(wi.z > 0.0) {
             return None;
         }
         let pdf = match table {
-            Some(table) => acdf_tabulated::mix_with_cosine(a, table, wi),
+            Some(table) => acdf_tabulated::mix_with_cosine(self.cosine_fraction, table, wi),
             None => self.pdf_in(o, wo, wi),
         };
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
@@ -732,44 +856,32 @@ impl OutgoingSampler {
     /// The density at wi for a valid wo whose [`Outgoing`] is `o`.
     #[inline(always)]
     fn pdf_in(&self, o: &Outgoing, wo: Vec3, wi: Vec3) -> f32 {
+        // The check of `pdf_with` first, so that an invalid wi costs no
+        // coordinates.
+        if !wi.is_finite() || !(wi.z > 0.0) {
+            return 0.0;
+        }
+        self.pdf_with(o, wi, &coordinates::<true>(self.map, o, wo, wi))
+    }
+
+    /// [`pdf_in`](Self::pdf_in) given the coordinates `c` of wi (found for
+    /// a whole chunk at once by the batch path, or one at a time).
+    #[inline(always)]
+    fn pdf_with(&self, o: &Outgoing, wi: Vec3, c: &Coordinates) -> f32 {
         if !wi.is_finite() || !(wi.z > 0.0) {
             return 0.0;
         }
         let a = self.cosine_fraction;
         let table = if a < 1.0 {
-            self.table_pdf(o, wo, wi)
+            if c.defined {
+                self.table_pdf_at(o, c)
+            } else {
+                0.0
+            }
         } else {
             0.0
         };
         acdf_tabulated::mix_with_cosine(a, table, wi)
-    }
-
-    /// [`BxdfSampler::sample_batch`] itself: what the draws share of wo
-    /// found once.
-    #[inline(always)]
-    fn sample_batch_one(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
-        if !is_valid_outgoing(wo) {
-            out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
-            return;
-        }
-        let o = self.outgoing(wo);
-        for (out, &u) in out.iter_mut().zip(u) {
-            *out = self.sample_in(&o, wo, u);
-        }
-    }
-
-    /// [`BxdfSampler::pdf_batch`] itself, as
-    /// [`sample_batch_one`](Self::sample_batch_one).
-    #[inline(always)]
-    fn pdf_batch_one(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
-        if !is_valid_outgoing(wo) {
-            out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
-            return;
-        }
-        let o = self.outgoing(wo);
-        for (out, &wi) in out.iter_mut().zip(wi) {
-            *out = self.pdf_in(&o, wo, wi);
-        }
     }
 
     /// [`sample_one`](Self::sample_one) compiled for AVX2 (the same IEEE
@@ -787,7 +899,8 @@ impl OutgoingSampler {
         self.pdf_one(wo, wi)
     }
 
-    /// [`sample_batch_one`](Self::sample_batch_one) compiled for AVX2.
+    /// [`sample_batch_one`](Self::sample_batch_one) compiled for AVX2
+    /// (the lane loops of a chunk in 8-wide vectors).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn sample_batch_avx2(

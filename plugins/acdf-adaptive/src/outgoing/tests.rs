@@ -142,15 +142,21 @@ fn storage_cap_is_kept() {
 }
 
 /// `sample_batch` and `pdf_batch`, which find the blend and rotation of wo
-/// once, give the bits of `sample` and `pdf` one call at a time: at a
-/// breakpoint, between two, on the normal, next to the horizon, and for an
-/// invalid wo.
+/// once and run the geometry of a chunk in lanes, give the bits of `sample`
+/// and `pdf` one call at a time: at a breakpoint, between two, on the
+/// normal, next to the horizon, and for an invalid wo; over several chunks
+/// and a partial one, u at 0, next to 1 and outside [0, 1), and wi without
+/// a density (below the horizon, opposite wo, not finite, zero). The
+/// public calls take the AVX2 build where the CPU has it; each is also
+/// held to the portable build of the same code (`*_one`).
 #[test]
 fn batch_forms_equal_single_calls() {
+    let bits =
+        |d: &Option<BxdfSample>| d.map(|d| (d.wi.to_array().map(f32::to_bits), d.pdf.to_bits()));
     let s = small(nickel()).with_cosine_mix(0.05).unwrap();
     let angles = s.breakpoint_angles();
     let k = angles.len() / 2;
-    let u: Vec<Vec2> = (0..300)
+    let mut u: Vec<Vec2> = (0..300)
         .map(|i| {
             Vec2::new(
                 (i as f32 * 0.618_034).fract(),
@@ -158,26 +164,45 @@ fn batch_forms_equal_single_calls() {
             )
         })
         .collect();
+    let below_one = acdf_core::ONE_MINUS_EPSILON;
+    u.extend([
+        Vec2::ZERO,
+        Vec2::new(below_one, below_one),
+        Vec2::new(0.02, below_one),
+        Vec2::new(1.0, 0.5),
+        Vec2::new(-0.5, 2.0),
+        Vec2::new(f32::NAN, 0.5),
+    ]);
     let thetas = [0.0, angles[k], 0.5 * (angles[k] + angles[k + 1]), 1.56];
     let mut wos: Vec<Vec3> = thetas.iter().map(|&t| direction(t, 0.7)).collect();
     wos.push(Vec3::new(0.0, 0.0, -1.0));
     for wo in wos {
         let mut drawn = vec![None; u.len()];
         s.sample_batch(wo, &u, &mut drawn);
+        let mut portable = vec![None; u.len()];
+        s.sample_batch_one(wo, &u, &mut portable);
         let mut wis = Vec::new();
-        for (&u, d) in u.iter().zip(&drawn) {
+        for ((&u, d), p) in u.iter().zip(&drawn).zip(&portable) {
             let one = s.sample(wo, u);
-            assert_eq!(
-                one.map(|d| (d.wi.to_array().map(f32::to_bits), d.pdf.to_bits())),
-                d.map(|d| (d.wi.to_array().map(f32::to_bits), d.pdf.to_bits())),
-                "{wo} {u}"
-            );
+            assert_eq!(bits(&one), bits(d), "{wo} {u}");
+            assert_eq!(bits(&s.sample_one(wo, u)), bits(d), "{wo} {u}");
+            assert_eq!(bits(p), bits(d), "{wo} {u}");
             wis.push(d.map_or(direction(0.3, 2.0), |d| d.wi));
         }
+        wis.extend([
+            Vec3::new(0.0, 0.0, -1.0),
+            -wo,
+            Vec3::new(f32::NAN, 0.0, 1.0),
+            Vec3::ZERO,
+        ]);
         let mut densities = vec![0.0; wis.len()];
         s.pdf_batch(wo, &wis, &mut densities);
-        for (&wi, &p) in wis.iter().zip(&densities) {
+        let mut portable = vec![0.0; wis.len()];
+        s.pdf_batch_one(wo, &wis, &mut portable);
+        for ((&wi, &p), &q) in wis.iter().zip(&densities).zip(&portable) {
             assert_eq!(s.pdf(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
+            assert_eq!(s.pdf_one(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
+            assert_eq!(q.to_bits(), p.to_bits(), "{wo} {wi}");
         }
     }
 }
