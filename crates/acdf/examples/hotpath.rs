@@ -3,12 +3,14 @@
 //!
 //! `hotpath build SAMPLER MATERIAL FILE` builds a sampler (default
 //! options) and saves it, so that the profiled run does not build;
-//! `hotpath run FILE N [pdf|batch|all]` loads it and makes N calls of
-//! `sample`, one per (wo, u) with wo cycling through the 64 outgoing
+//! `hotpath run FILE N [pdf|batch|each|all]` loads it and makes N calls
+//! of `sample`, one per (wo, u) with wo cycling through the 64 outgoing
 //! directions of `acdf bench`, then (`pdf`, `all`) `pdf` of every draw,
 //! then (`batch`, `all`) `sample_batch` and `pdf_batch` for one wo in
-//! chunks of 4096. Each runs in a function of its own (`hot_sample`,
-//! `hot_pdf`, `hot_batch`, `hot_pdf_batch`) for callgrind to count:
+//! chunks of 4096, then (`each`, `all`) `sample_each` of the same pairs
+//! and `pdf_each` of the draws, in chunks of 4096. Each runs in a function
+//! of its own (`hot_sample`, `hot_pdf`, `hot_batch`, `hot_pdf_batch`,
+//! `hot_each`, `hot_pdf_each`) for callgrind to count:
 //!
 //! ```sh
 //! cargo build --release -p acdf --example hotpath
@@ -65,6 +67,35 @@ fn hot_pdf_batch<S: BxdfSampler>(s: &S, wo: Vec3, wi: &[Vec3], out: &mut [f32]) 
     }
 }
 
+/// `sample_each` of the pairs, in chunks of 4096.
+#[inline(never)]
+fn hot_each<S: BxdfSampler>(
+    s: &S,
+    wos: &[Vec3],
+    u: &[Vec2],
+    out: &mut [Option<acdf_core::BxdfSample>],
+) {
+    for ((wc, uc), oc) in wos
+        .chunks(4096)
+        .zip(u.chunks(4096))
+        .zip(out.chunks_mut(4096))
+    {
+        s.sample_each(wc, uc, oc);
+    }
+}
+
+/// `pdf_each` of the pairs, in chunks of 4096.
+#[inline(never)]
+fn hot_pdf_each<S: BxdfSampler>(s: &S, wos: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+    for ((wc, ic), oc) in wos
+        .chunks(4096)
+        .zip(wi.chunks(4096))
+        .zip(out.chunks_mut(4096))
+    {
+        s.pdf_each(wc, ic, oc);
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     match args[1].as_str() {
@@ -107,10 +138,18 @@ fn main() {
                 hot_pdf_batch(&s, wo, &wi, &mut dens);
                 println!("batch sum {}", dens.iter().sum::<f32>());
             }
+            if what == "all" || what == "each" {
+                let mut out = vec![None; n];
+                hot_each(&s, &wos, &u, &mut out);
+                let (wo, wi): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
+                let mut dens = vec![0.0; wi.len()];
+                hot_pdf_each(&s, &wo, &wi, &mut dens);
+                println!("each sum {}", dens.iter().sum::<f32>());
+            }
             println!("{} draws", pairs.len());
         }
         _ => panic!(
-            "usage: hotpath build SAMPLER MATERIAL FILE | hotpath run FILE N [pdf|batch|all]"
+            "usage: hotpath build SAMPLER MATERIAL FILE | hotpath run FILE N [pdf|batch|each|all]"
         ),
     }
 }

@@ -1,5 +1,6 @@
-//! The batch paths of [`OutgoingSampler`] for one outgoing direction: a
-//! chunk of draws (or densities) at a time, in stages.
+//! The batch paths of [`OutgoingSampler`]: draws and densities a chunk at a
+//! time, for one outgoing direction (`sample_batch`, `pdf_batch`) or one
+//! per pair (`sample_each`, `pdf_each`, a wavefront of shading points).
 //!
 //! A draw is two table searches (the drawn slice, then the other slice's
 //! density at the point), then about a hundred operations of geometry
@@ -12,13 +13,13 @@
 //! build of the batch functions. Each lane runs the IEEE operations of the
 //! one-at-a-time path in the same order (no fused multiply-adds are
 //! formed), so the results are bit-identical to `sample` and `pdf`
-//! (`batch_forms_equal_single_calls`).
+//! (`batch_forms_equal_single_calls`, `each_forms_equal_single_calls`).
 
 // The lane loops index several arrays of one chunk by the same lane
 // number; that is the layout the vectoriser wants, not an iterator chain.
 #![allow(clippy::needless_range_loop)]
 
-use super::{coordinates, draw_at, Coordinates, OutgoingSampler, Route, TablePoint};
+use super::{coordinates, draw_at, Coordinates, Outgoing, OutgoingSampler, Route, TablePoint};
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{is_valid_outgoing, BxdfSample, Vec2, Vec3};
 
@@ -29,116 +30,311 @@ const CHUNK: usize = 64;
 /// One `f32` per lane of a chunk.
 type Lanes = [f32; CHUNK];
 
+/// Where the lanes of a chunk take their outgoing direction from.
+trait Frames {
+    /// Lane l's wo and what its draws share ([`Outgoing`]); `None` for an
+    /// invalid wo (the lane has no draw and no density).
+    fn frame(&self, l: usize) -> Option<(Vec3, Outgoing)>;
+
+    /// [`frame`](Self::frame) for the geometry loops, without a branch: an
+    /// invalid wo gives a valid stand-in, whose results are dropped.
+    fn lane(&self, l: usize) -> (Vec3, Outgoing);
+}
+
+/// One valid wo for every lane (`sample_batch`, `pdf_batch`): the geometry
+/// loop reads it as a constant.
+struct OneFrame(Vec3, Outgoing);
+
+impl Frames for OneFrame {
+    #[inline(always)]
+    fn frame(&self, _: usize) -> Option<(Vec3, Outgoing)> {
+        Some((self.0, self.1))
+    }
+
+    #[inline(always)]
+    fn lane(&self, _: usize) -> (Vec3, Outgoing) {
+        (self.0, self.1)
+    }
+}
+
+/// A wo per lane (`sample_each`, `pdf_each`), each with its [`Outgoing`]
+/// found once per chunk, one array per quantity (the layout the geometry
+/// loop vectorises over); an invalid wo keeps the lane idle and holds the
+/// stand-in (wo on the normal, [`Outgoing::NORMAL`]).
+struct EachFrame {
+    wo_x: Lanes,
+    wo_y: Lanes,
+    wo_z: Lanes,
+    k: [usize; CHUNK],
+    t: Lanes,
+    rotation_x: Lanes,
+    rotation_y: Lanes,
+    sin_o: Lanes,
+    valid: [bool; CHUNK],
+}
+
+impl EachFrame {
+    fn new() -> Self {
+        EachFrame {
+            wo_x: [0.0; CHUNK],
+            wo_y: [0.0; CHUNK],
+            wo_z: [1.0; CHUNK],
+            k: [0; CHUNK],
+            t: [0.0; CHUNK],
+            rotation_x: [1.0; CHUNK],
+            rotation_y: [0.0; CHUNK],
+            sin_o: [0.0; CHUNK],
+            valid: [false; CHUNK],
+        }
+    }
+
+    /// The frames of the chunk's directions `wo`.
+    #[inline(always)]
+    fn fill(&mut self, sampler: &OutgoingSampler, wo: &[Vec3]) {
+        for (l, &w) in wo.iter().enumerate().take(CHUNK) {
+            let valid = is_valid_outgoing(w);
+            let (w, o) = if valid {
+                (w, sampler.outgoing(w))
+            } else {
+                (Vec3::Z, Outgoing::NORMAL)
+            };
+            self.wo_x[l] = w.x;
+            self.wo_y[l] = w.y;
+            self.wo_z[l] = w.z;
+            self.k[l] = o.k;
+            self.t[l] = o.t;
+            self.rotation_x[l] = o.rotation.x;
+            self.rotation_y[l] = o.rotation.y;
+            self.sin_o[l] = o.sin_o;
+            self.valid[l] = valid;
+        }
+    }
+}
+
+impl Frames for EachFrame {
+    #[inline(always)]
+    fn frame(&self, l: usize) -> Option<(Vec3, Outgoing)> {
+        self.valid[l].then(|| self.lane(l))
+    }
+
+    #[inline(always)]
+    fn lane(&self, l: usize) -> (Vec3, Outgoing) {
+        let wo = Vec3::new(self.wo_x[l], self.wo_y[l], self.wo_z[l]);
+        let o = Outgoing {
+            k: self.k[l],
+            t: self.t[l],
+            rotation: Vec2::new(self.rotation_x[l], self.rotation_y[l]),
+            sin_o: self.sin_o[l],
+        };
+        (wo, o)
+    }
+}
+
+/// The table points of a chunk, one array per quantity.
+struct PointLanes {
+    x: Lanes,
+    v: Lanes,
+    p_xv: Lanes,
+    same: [bool; CHUNK],
+}
+
+/// The draws of a chunk in the shading frame, one array per quantity.
+struct DrawLanes {
+    wi_x: Lanes,
+    wi_y: Lanes,
+    wi_z: Lanes,
+    table: Lanes,
+    shortcut: [bool; CHUNK],
+}
+
+/// The coordinates of a chunk of wi, one array per quantity.
+struct CoordinateLanes {
+    x: Lanes,
+    v: Lanes,
+    sin_h: Lanes,
+    wo_h: Lanes,
+    defined: [bool; CHUNK],
+}
+
 impl OutgoingSampler {
     /// [`BxdfSampler::sample_batch`](acdf_core::BxdfSampler::sample_batch)
-    /// itself: the blend and rotation of wo found once, then per chunk the
-    /// table points one lane at a time, their angles many at a time, the
-    /// geometry as one loop over the lanes, and each draw's check.
+    /// itself: the blend and rotation of wo found once, then
+    /// [`sample_chunk`](Self::sample_chunk) per chunk.
     #[inline(always)]
     pub(super) fn sample_batch_one(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
         if !is_valid_outgoing(wo) {
             out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
             return;
         }
-        let o = self.outgoing(wo);
-        let map = self.map;
-        let mut cosine_u: [Option<Vec2>; CHUNK] = [None; CHUNK];
-        let (mut x, mut v, mut p_xv) = ([0.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
-        let mut same = [false; CHUNK];
-        let mut squares: Lanes = [0.0; CHUNK];
-        let (mut sin_h, mut cos_h): (Lanes, Lanes) = ([0.0; CHUNK], [0.0; CHUNK]);
-        let (mut sin_p, mut cos_p): (Lanes, Lanes) = ([0.0; CHUNK], [0.0; CHUNK]);
-        let (mut wi_x, mut wi_y, mut wi_z): (Lanes, Lanes, Lanes) =
-            ([0.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
-        let mut table: Lanes = [0.0; CHUNK];
-        let mut shortcut = [false; CHUNK];
+        let frame = OneFrame(wo, self.outgoing(wo));
         for (uc, oc) in u.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            let n = uc.len().min(oc.len());
-            // The searches, lane by lane (a cosine lane keeps the point
-            // (0, 0), whose geometry is computed and ignored).
-            for l in 0..n {
-                let point = match self.route(uc[l]) {
-                    Route::Cosine(u) => {
-                        cosine_u[l] = Some(u);
-                        TablePoint::default()
-                    }
-                    Route::Table(u) => {
-                        cosine_u[l] = None;
-                        self.table_point(&o, u)
-                    }
-                };
-                x[l] = point.x;
-                v[l] = point.v;
-                p_xv[l] = point.p_xv;
-                same[l] = point.same;
-            }
-            // θ_h = (π/2) v² is v² quarter turns, as `HalfMap::angles` has it.
-            for l in 0..n {
-                squares[l] = v[l] * v[l];
-            }
-            sin_cos_quarter_turns_each(&squares[..n], &mut sin_h[..n], &mut cos_h[..n]);
-            sin_cos_turns_each(&x[..n], &mut sin_p[..n], &mut cos_p[..n]);
-            for l in 0..n {
-                let point = TablePoint {
-                    x: x[l],
-                    v: v[l],
-                    p_xv: p_xv[l],
-                    same: same[l],
-                };
-                let theta = map.polar(v[l], || (sin_h[l], cos_h[l]));
-                let d = draw_at(map, &o, wo, &point, (theta, (sin_p[l], cos_p[l])));
-                wi_x[l] = d.wi.x;
-                wi_y[l] = d.wi.y;
-                wi_z[l] = d.wi.z;
-                table[l] = d.table;
-                shortcut[l] = d.shortcut;
-            }
-            for l in 0..n {
-                oc[l] = match cosine_u[l] {
-                    Some(u) => self.sample_cosine(&o, wo, u),
-                    None => {
-                        let wi = Vec3::new(wi_x[l], wi_y[l], wi_z[l]);
-                        self.finish_draw(&o, wo, wi, shortcut[l].then_some(table[l]))
-                    }
-                };
-            }
+            self.sample_chunk(&frame, uc, oc);
+        }
+    }
+
+    /// [`BxdfSampler::sample_each`](acdf_core::BxdfSampler::sample_each)
+    /// itself: per chunk the blend and rotation of each wo, then
+    /// [`sample_chunk`](Self::sample_chunk).
+    #[inline(always)]
+    pub(super) fn sample_each_one(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        let mut frames = EachFrame::new();
+        for ((wc, uc), oc) in wo
+            .chunks(CHUNK)
+            .zip(u.chunks(CHUNK))
+            .zip(out.chunks_mut(CHUNK))
+        {
+            frames.fill(self, wc);
+            let n = wc.len().min(uc.len()).min(oc.len());
+            self.sample_chunk(&frames, &uc[..n], &mut oc[..n]);
         }
     }
 
     /// [`BxdfSampler::pdf_batch`](acdf_core::BxdfSampler::pdf_batch)
-    /// itself: the coordinates of a chunk of wi as one loop over the lanes,
-    /// then each density's table lookups.
+    /// itself, as [`sample_batch_one`](Self::sample_batch_one).
     #[inline(always)]
     pub(super) fn pdf_batch_one(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
         if !is_valid_outgoing(wo) {
             out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
             return;
         }
-        let o = self.outgoing(wo);
-        let map = self.map;
-        let (mut x, mut v): (Lanes, Lanes) = ([0.0; CHUNK], [0.0; CHUNK]);
-        let (mut sin_h, mut wo_h): (Lanes, Lanes) = ([0.0; CHUNK], [0.0; CHUNK]);
-        let mut defined = [false; CHUNK];
+        let frame = OneFrame(wo, self.outgoing(wo));
         for (wc, oc) in wi.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            let n = wc.len().min(oc.len());
-            for l in 0..n {
-                let c = coordinates::<false>(map, &o, wo, wc[l]);
-                x[l] = c.x;
-                v[l] = c.v;
-                sin_h[l] = c.sin_h;
-                wo_h[l] = c.wo_h;
-                defined[l] = c.defined;
-            }
-            for l in 0..n {
-                let c = Coordinates {
-                    x: x[l],
-                    v: v[l],
-                    sin_h: sin_h[l],
-                    wo_h: wo_h[l],
-                    defined: defined[l],
-                };
-                oc[l] = self.pdf_with(&o, wc[l], &c);
-            }
+            self.pdf_chunk(&frame, wc, oc);
+        }
+    }
+
+    /// [`BxdfSampler::pdf_each`](acdf_core::BxdfSampler::pdf_each) itself,
+    /// as [`sample_each_one`](Self::sample_each_one).
+    #[inline(always)]
+    pub(super) fn pdf_each_one(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        let mut frames = EachFrame::new();
+        for ((wc, ic), oc) in wo
+            .chunks(CHUNK)
+            .zip(wi.chunks(CHUNK))
+            .zip(out.chunks_mut(CHUNK))
+        {
+            frames.fill(self, wc);
+            let n = wc.len().min(ic.len()).min(oc.len());
+            self.pdf_chunk(&frames, &ic[..n], &mut oc[..n]);
+        }
+    }
+
+    /// The draws of one chunk (at most [`CHUNK`] pairs): the table points
+    /// one lane at a time, their angles many at a time, the geometry as
+    /// one loop over the lanes, and each draw's check.
+    #[inline(always)]
+    fn sample_chunk<F: Frames>(&self, frames: &F, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        let n = u.len().min(out.len()).min(CHUNK);
+        let map = self.map;
+        let mut cosine_u: [Option<Vec2>; CHUNK] = [None; CHUNK];
+        let mut points = PointLanes {
+            x: [0.0; CHUNK],
+            v: [0.0; CHUNK],
+            p_xv: [0.0; CHUNK],
+            same: [false; CHUNK],
+        };
+        // The searches, lane by lane (a cosine lane or one without a
+        // frame keeps the point (0, 0), whose geometry is computed and
+        // ignored).
+        for l in 0..n {
+            let point = match frames.frame(l).map(|(_, o)| (o, self.route(u[l]))) {
+                Some((o, Route::Table(u))) => self.table_point(&o, u),
+                Some((_, Route::Cosine(u))) => {
+                    cosine_u[l] = Some(u);
+                    TablePoint::default()
+                }
+                None => TablePoint::default(),
+            };
+            points.x[l] = point.x;
+            points.v[l] = point.v;
+            points.p_xv[l] = point.p_xv;
+            points.same[l] = point.same;
+        }
+        // θ_h = (π/2) v² is v² quarter turns, as `HalfMap::angles` has it.
+        let mut squares: Lanes = [0.0; CHUNK];
+        for l in 0..n {
+            squares[l] = points.v[l] * points.v[l];
+        }
+        let (mut sin_h, mut cos_h): (Lanes, Lanes) = ([0.0; CHUNK], [0.0; CHUNK]);
+        let (mut sin_p, mut cos_p): (Lanes, Lanes) = ([0.0; CHUNK], [0.0; CHUNK]);
+        sin_cos_quarter_turns_each(&squares[..n], &mut sin_h[..n], &mut cos_h[..n]);
+        sin_cos_turns_each(&points.x[..n], &mut sin_p[..n], &mut cos_p[..n]);
+        let mut draws = DrawLanes {
+            wi_x: [0.0; CHUNK],
+            wi_y: [0.0; CHUNK],
+            wi_z: [0.0; CHUNK],
+            table: [0.0; CHUNK],
+            shortcut: [false; CHUNK],
+        };
+        for l in 0..n {
+            let (wo, o) = frames.lane(l);
+            let point = TablePoint {
+                x: points.x[l],
+                v: points.v[l],
+                p_xv: points.p_xv[l],
+                same: points.same[l],
+            };
+            let theta = map.polar(point.v, || (sin_h[l], cos_h[l]));
+            let d = draw_at(map, &o, wo, &point, (theta, (sin_p[l], cos_p[l])));
+            draws.wi_x[l] = d.wi.x;
+            draws.wi_y[l] = d.wi.y;
+            draws.wi_z[l] = d.wi.z;
+            draws.table[l] = d.table;
+            draws.shortcut[l] = d.shortcut;
+        }
+        for l in 0..n {
+            let Some((wo, o)) = frames.frame(l) else {
+                out[l] = None;
+                continue;
+            };
+            out[l] = match cosine_u[l] {
+                Some(u) => self.sample_cosine(&o, wo, u),
+                None => {
+                    let wi = Vec3::new(draws.wi_x[l], draws.wi_y[l], draws.wi_z[l]);
+                    let table = draws.shortcut[l].then_some(draws.table[l]);
+                    self.finish_draw(&o, wo, wi, table)
+                }
+            };
+        }
+    }
+
+    /// The densities of one chunk (at most [`CHUNK`] pairs): the
+    /// coordinates as one loop over the lanes, then each density's table
+    /// lookups.
+    #[inline(always)]
+    fn pdf_chunk<F: Frames>(&self, frames: &F, wi: &[Vec3], out: &mut [f32]) {
+        let n = wi.len().min(out.len()).min(CHUNK);
+        let map = self.map;
+        let mut lanes = CoordinateLanes {
+            x: [0.0; CHUNK],
+            v: [0.0; CHUNK],
+            sin_h: [0.0; CHUNK],
+            wo_h: [0.0; CHUNK],
+            defined: [false; CHUNK],
+        };
+        for l in 0..n {
+            let (wo, o) = frames.lane(l);
+            let c = coordinates::<false>(map, &o, wo, wi[l]);
+            lanes.x[l] = c.x;
+            lanes.v[l] = c.v;
+            lanes.sin_h[l] = c.sin_h;
+            lanes.wo_h[l] = c.wo_h;
+            lanes.defined[l] = c.defined;
+        }
+        for l in 0..n {
+            out[l] = match frames.frame(l) {
+                Some((_, o)) => {
+                    let c = Coordinates {
+                        x: lanes.x[l],
+                        v: lanes.v[l],
+                        sin_h: lanes.sin_h[l],
+                        wo_h: lanes.wo_h[l],
+                        defined: lanes.defined[l],
+                    };
+                    self.pdf_with(&o, wi[l], &c)
+                }
+                None => 0.0,
+            };
         }
     }
 }

@@ -750,6 +750,18 @@ struct Outgoing {
     sin_o: f32,
 }
 
+impl Outgoing {
+    /// A valid stand-in (wo on the normal, the first slice alone), for the
+    /// batch lanes whose own wo is invalid: they compute with it and their
+    /// results are dropped.
+    const NORMAL: Outgoing = Outgoing {
+        k: 0,
+        t: 0.0,
+        rotation: Vec2::X,
+        sin_o: 0.0,
+    };
+}
+
 /// The part of the mixture a draw comes from, with u rescaled to it
 /// ([`OutgoingSampler::route`]).
 #[derive(Debug, Clone, Copy)]
@@ -919,6 +931,26 @@ impl OutgoingSampler {
     fn pdf_batch_avx2(&self, _: acdf_core::cpu::Avx2, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
         self.pdf_batch_one(wo, wi, out)
     }
+
+    /// [`sample_each_one`](Self::sample_each_one) compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn sample_each_avx2(
+        &self,
+        _: acdf_core::cpu::Avx2,
+        wo: &[Vec3],
+        u: &[Vec2],
+        out: &mut [Option<BxdfSample>],
+    ) {
+        self.sample_each_one(wo, u, out)
+    }
+
+    /// [`pdf_each_one`](Self::pdf_each_one) compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn pdf_each_avx2(&self, _: acdf_core::cpu::Avx2, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        self.pdf_each_one(wo, wi, out)
+    }
 }
 
 impl BxdfSampler for OutgoingSampler {
@@ -968,6 +1000,28 @@ impl BxdfSampler for OutgoingSampler {
             return unsafe { self.pdf_batch_avx2(cpu, wo, wi, out) };
         }
         self.pdf_batch_one(wo, wi, out)
+    }
+
+    /// `sample` for every pair, a chunk of 64 at a time as
+    /// [`sample_batch`](Self::sample_batch) does, with the blend and
+    /// rotation of each wo.
+    fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: as for `sample`.
+            return unsafe { self.sample_each_avx2(cpu, wo, u, out) };
+        }
+        self.sample_each_one(wo, u, out)
+    }
+
+    /// `pdf` for every pair, as [`sample_each`](Self::sample_each).
+    fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: as for `sample`.
+            return unsafe { self.pdf_each_avx2(cpu, wo, wi, out) };
+        }
+        self.pdf_each_one(wo, wi, out)
     }
 
     /// The breakpoints (4 bytes each) and every slice's stored arrays.

@@ -207,6 +207,88 @@ fn batch_forms_equal_single_calls() {
     }
 }
 
+/// `sample_each` and `pdf_each`, a wo per pair in chunks, give the bits of
+/// `sample` and `pdf` one call at a time, in their AVX2 and portable
+/// builds: wo across the hemisphere and at breakpoints, with invalid ones
+/// (below the horizon, not finite) among them, over several chunks and a
+/// partial one.
+#[test]
+fn each_forms_equal_single_calls() {
+    let bits =
+        |d: &Option<BxdfSample>| d.map(|d| (d.wi.to_array().map(f32::to_bits), d.pdf.to_bits()));
+    let s = small(nickel()).with_cosine_mix(0.05).unwrap();
+    let angles = s.breakpoint_angles();
+    let n = 300;
+    let wo: Vec<Vec3> = (0..n)
+        .map(|i| match i % 23 {
+            0 => Vec3::new(0.0, 0.0, -1.0),
+            1 => Vec3::new(f32::NAN, 0.0, 1.0),
+            2 => direction(angles[i % angles.len()], 1.3),
+            _ => direction(
+                1.56 * (i as f32 * 0.377_2).fract(),
+                std::f32::consts::TAU * (i as f32 * 0.711_3).fract(),
+            ),
+        })
+        .collect();
+    let u: Vec<Vec2> = (0..n)
+        .map(|i| {
+            Vec2::new(
+                (i as f32 * 0.618_034).fract(),
+                (i as f32 * 0.414_214).fract(),
+            )
+        })
+        .collect();
+    let mut drawn = vec![None; n];
+    s.sample_each(&wo, &u, &mut drawn);
+    let mut portable = vec![None; n];
+    s.sample_each_one(&wo, &u, &mut portable);
+    let mut wis = Vec::new();
+    for k in 0..n {
+        assert_eq!(
+            bits(&s.sample(wo[k], u[k])),
+            bits(&drawn[k]),
+            "{} {}",
+            wo[k],
+            u[k]
+        );
+        assert_eq!(bits(&portable[k]), bits(&drawn[k]), "{} {}", wo[k], u[k]);
+        wis.push(drawn[k].map_or(direction(0.3, 2.0), |d| d.wi));
+    }
+    // Some wi without a density among the others.
+    wis[5] = -wo[5];
+    wis[6] = Vec3::new(0.0, 0.0, -1.0);
+    let mut densities = vec![0.0; n];
+    s.pdf_each(&wo, &wis, &mut densities);
+    let mut portable = vec![0.0; n];
+    s.pdf_each_one(&wo, &wis, &mut portable);
+    for k in 0..n {
+        assert_eq!(
+            s.pdf(wo[k], wis[k]).to_bits(),
+            densities[k].to_bits(),
+            "{} {}",
+            wo[k],
+            wis[k]
+        );
+        assert_eq!(
+            portable[k].to_bits(),
+            densities[k].to_bits(),
+            "{} {}",
+            wo[k],
+            wis[k]
+        );
+    }
+    // A shorter `out` leaves the rest alone.
+    let mut short = vec![
+        Some(BxdfSample {
+            wi: Vec3::Z,
+            pdf: -1.0
+        });
+        3
+    ];
+    s.sample_each(&wo[..2], &u, &mut short);
+    assert_eq!(short[2].map(|d| d.pdf), Some(-1.0));
+}
+
 /// The blend weight is linear in cos θ_o between two breakpoints, 0 and 1
 /// at their ends, and the blended weights of the slices are continuous
 /// across a breakpoint; the normal, the grazing end, NaN and a lone
