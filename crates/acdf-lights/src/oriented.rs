@@ -510,8 +510,49 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
     /// rescaled), and the density is the mixture's, of which the drawn
     /// component's part comes with the draw.
     fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        let grid = self.map.grid();
+        self.sample_from(unit_normal(normal).and_then(|n| self.node_dist(n)), u)
+    }
+
+    fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
         let node = unit_normal(normal).and_then(|n| self.node_dist(n));
+        self.density_of(node, dir)
+    }
+
+    /// The plain table and the nodes built so far.
+    fn storage_bytes(&self) -> usize {
+        self.plain.storage_bytes()
+            + self
+                .nodes
+                .iter()
+                .filter_map(|n| n.get().and_then(Option::as_ref))
+                .map(|d| d.storage_bytes())
+                .sum::<usize>()
+    }
+
+    /// The node is found once for the whole batch.
+    fn sample_batch(&self, normal: Option<Vec3>, u: &[Vec2], out: &mut [Option<SphereSample>]) {
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
+        for (o, &u) in out.iter_mut().zip(u) {
+            *o = self.sample_from(node, u);
+        }
+    }
+
+    /// The node is found once for the whole batch.
+    fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
+        for (o, &d) in out.iter_mut().zip(dir) {
+            *o = self.density_of(node, d);
+        }
+    }
+}
+
+impl<B: TableBuilder> OrientedSampler<B> {
+    /// [`sample`](SphereSampler::sample) once the normal's node
+    /// distribution `node` is known (`None`: no usable normal, or a node
+    /// without light).
+    #[inline(always)]
+    fn sample_from(&self, node: Option<&B::Dist>, u: Vec2) -> Option<SphereSample> {
+        let grid = self.map.grid();
         let Some(d) = node else {
             let s = self.plain.sample(u);
             return finish_draw(grid, s, |_, _| s.pdf, |dir| self.density_of(None, dir));
@@ -540,30 +581,6 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
                 |k, j| (1.0 - a) * s.pdf + a * self.plain.pdf(grid.texel_centre(k, j)),
                 |dir| self.density_of(node, dir),
             )
-        }
-    }
-
-    fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
-        self.density_of(node, dir)
-    }
-
-    /// The plain table and the nodes built so far.
-    fn storage_bytes(&self) -> usize {
-        self.plain.storage_bytes()
-            + self
-                .nodes
-                .iter()
-                .filter_map(|n| n.get().and_then(Option::as_ref))
-                .map(|d| d.storage_bytes())
-                .sum::<usize>()
-    }
-
-    /// The node is found once for the whole batch.
-    fn pdf_batch(&self, normal: Option<Vec3>, dir: &[Vec3], out: &mut [f32]) {
-        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
-        for (o, &d) in out.iter_mut().zip(dir) {
-            *o = self.density_of(node, d);
         }
     }
 }

@@ -2,13 +2,15 @@
 //! which are repeatable on a loaded machine where timings are not (the
 //! environment counterpart of the `hotpath` example).
 //!
-//! `env_hotpath MAP SAMPLER N RUN` builds SAMPLER (any name of `acdf
-//! env-sample --help`, default options) over the lat-long map MAP, builds
-//! the normal cells the normals of `acdf env-report` need, then makes N
-//! calls of `sample` in the function `hot_env`, one per uniform pair, the
-//! normal cycling through those normals and held for RUN consecutive
-//! calls (RUN = 0: no normal, the plain luminance table of an
-//! orientation-aware sampler). For callgrind to count:
+//! `env_hotpath MAP SAMPLER N RUN [batch]` builds SAMPLER (any name of
+//! `acdf env-sample --help`, default options) over the lat-long map MAP,
+//! builds the normal cells the normals of `acdf env-report` need, then
+//! makes N calls of `sample` in the function `hot_env`, one per uniform
+//! pair, the normal cycling through those normals and held for RUN
+//! consecutive calls (RUN = 0: no normal, the plain luminance table of an
+//! orientation-aware sampler). With `batch`, each run of RUN pairs is one
+//! call of `sample_batch` instead, in the function `hot_env_batch`. For
+//! callgrind to count:
 //!
 //! ```sh
 //! cargo build --release -p acdf --example env_hotpath
@@ -38,10 +40,25 @@ fn hot_env<S: SphereSampler>(s: &S, normals: &[Vec3], u: &[Vec2], run: usize) ->
     total
 }
 
+/// `sample_batch` for each run of `run` pairs (at least 1), the normal
+/// `normals[k % len]` for the k-th run; the sum of the densities.
+#[inline(never)]
+fn hot_env_batch<S: SphereSampler>(s: &S, normals: &[Vec3], u: &[Vec2], run: usize) -> f32 {
+    let mut out = vec![None; run.max(1)];
+    let mut total = 0.0;
+    for (k, uc) in u.chunks(run.max(1)).enumerate() {
+        let normal = normals[k % normals.len()];
+        s.sample_batch(Some(black_box(normal)), black_box(uc), &mut out[..uc.len()]);
+        total += out[..uc.len()].iter().flatten().map(|d| d.pdf).sum::<f32>();
+    }
+    total
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    if args.len() != 5 {
-        eprintln!("usage: env_hotpath MAP SAMPLER N RUN");
+    let batch = args.len() == 6 && args[5] == "batch";
+    if args.len() != 5 && !batch {
+        eprintln!("usage: env_hotpath MAP SAMPLER N RUN [batch]");
         std::process::exit(2);
     }
     let map = match EnvMap::open(std::path::Path::new(&args[1])) {
@@ -70,5 +87,10 @@ fn main() {
     let u: Vec<Vec2> = (0..n)
         .map(|_| Vec2::new(rng.random(), rng.random()))
         .collect();
-    println!("density sum {}", hot_env(&s, &normals, &u, run));
+    let total = if batch {
+        hot_env_batch(&s, &normals, &u, run)
+    } else {
+        hot_env(&s, &normals, &u, run)
+    };
+    println!("density sum {total}");
 }
