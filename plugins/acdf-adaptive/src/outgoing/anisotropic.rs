@@ -655,8 +655,19 @@ impl AnisotropicOutgoingSampler {
         }
     }
 
-    /// The blended table density at wi for a valid wo, per solid angle.
-    fn table_pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    /// What the draws and densities of the valid wo share.
+    fn blend(&self, wo: Vec3) -> Blend {
+        let (slices, weights) = self.blend_of(wo);
+        Blend {
+            slices,
+            weights,
+            rotation: self.rotation(wo),
+        }
+    }
+
+    /// The blended table density at wi for a valid wo whose [`Blend`] is
+    /// `b`, per solid angle.
+    fn table_pdf(&self, b: &Blend, wo: Vec3, wi: Vec3) -> f32 {
         let sum = wi + wo;
         let length_squared = sum.length_squared();
         if !(length_squared > 1e-20 && length_squared.is_finite()) {
@@ -670,17 +681,16 @@ impl AnisotropicOutgoingSampler {
             return 0.0;
         }
         let v = self.map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
-        let r = self.rotation(wo);
+        let r = b.rotation;
         let (hx, hy) = (r.x * sum.x + r.y * sum.y, r.x * sum.y - r.y * sum.x);
         let mut phi = fast_atan2(hy, hx);
         if phi < 0.0 {
             phi += TAU;
         }
         let x = (phi / TAU).clamp(0.0, ONE_MINUS_EPSILON);
-        let (slices, weights) = self.blend_of(wo);
         let (nx, ny) = (self.n_phi_h as f32, self.n_theta_h as f32);
         let mut p = 0.0;
-        for (&i, &w) in slices.iter().zip(&weights) {
+        for (&i, &w) in b.slices.iter().zip(&b.weights) {
             if w > 0.0 {
                 p += w * self.slices[i].pdf(x, v, nx, ny);
             }
@@ -693,10 +703,11 @@ impl AnisotropicOutgoingSampler {
         }
     }
 
-    /// A table draw for a valid wo: one of the four slices picked by the
-    /// blend weights with u.x (rescaled), then (x, v) from it.
-    fn sample_table(&self, wo: Vec3, u: Vec2) -> Vec3 {
-        let (slices, weights) = self.blend_of(wo);
+    /// A table draw for a valid wo whose [`Blend`] is `b`: one of the four
+    /// slices picked by the blend weights with u.x (rescaled), then (x, v)
+    /// from it.
+    fn sample_table(&self, b: &Blend, wo: Vec3, u: Vec2) -> Vec3 {
+        let (slices, weights) = (b.slices, b.weights);
         let mut chosen = 3;
         let mut below = 0.0;
         for (i, &w) in weights.iter().enumerate() {
@@ -719,7 +730,7 @@ impl AnisotropicOutgoingSampler {
         let (x, v) = d.p;
         let (sin_h, cos_h) = self.map.angles(v);
         let (sin_p, cos_p) = sin_cos_turns(x);
-        let r = self.rotation(wo);
+        let r = b.rotation;
         let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
         let h = Vec3::new(
             r.x * local.x - r.y * local.y,
@@ -753,6 +764,56 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
         if !is_valid_outgoing(wo) {
             return None;
         }
+        self.sample_in(&self.blend(wo), wo, u)
+    }
+
+    /// (1 - a) times the bilinearly blended table density plus
+    /// a cos θ_i / π; 0 for an invalid wo, a non-finite wi or one at or
+    /// below the horizon.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if !is_valid_outgoing(wo) {
+            return 0.0;
+        }
+        self.pdf_in(&self.blend(wo), wo, wi)
+    }
+
+    /// `sample` for every u, with the blend and rotation of wo found once.
+    fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+        if !is_valid_outgoing(wo) {
+            out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
+            return;
+        }
+        let b = self.blend(wo);
+        for (o, &u) in out.iter_mut().zip(u) {
+            *o = self.sample_in(&b, wo, u);
+        }
+    }
+
+    /// `pdf` for every wi, with the blend and rotation of wo found once.
+    fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        if !is_valid_outgoing(wo) {
+            out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
+            return;
+        }
+        let b = self.blend(wo);
+        for (o, &wi) in out.iter_mut().zip(wi) {
+            *o = self.pdf_in(&b, wo, wi);
+        }
+    }
+
+    /// The breakpoints (4 bytes each) and every slice's stored arrays.
+    fn storage_bytes(&self) -> usize {
+        stored_bytes(
+            self.theta_breakpoints.len() + self.phi_breakpoints.len(),
+            &self.slices,
+        )
+    }
+}
+
+impl AnisotropicOutgoingSampler {
+    /// [`sample`](BxdfSampler::sample) for a valid wo whose [`Blend`] is
+    /// `b`.
+    fn sample_in(&self, b: &Blend, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
         let u = Vec2::new(clamp_unit(u.x), clamp_unit(u.y));
         let a = self.cosine_fraction;
         let wi = if u.x < a {
@@ -763,34 +824,39 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
             } else {
                 u.x
             };
-            self.sample_table(wo, Vec2::new(ux, u.y))
+            self.sample_table(b, wo, Vec2::new(ux, u.y))
         };
         if !(wi.z > 0.0) {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
+        let pdf = self.pdf_in(b, wo, wi);
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
     }
 
-    /// (1 - a) times the bilinearly blended table density plus
-    /// a cos θ_i / π; 0 for an invalid wo, a non-finite wi or one at or
-    /// below the horizon.
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if !is_valid_outgoing(wo) || !wi.is_finite() || !(wi.z > 0.0) {
+    /// [`pdf`](BxdfSampler::pdf) for a valid wo whose [`Blend`] is `b`.
+    fn pdf_in(&self, b: &Blend, wo: Vec3, wi: Vec3) -> f32 {
+        if !wi.is_finite() || !(wi.z > 0.0) {
             return 0.0;
         }
         let a = self.cosine_fraction;
-        let table = if a < 1.0 { self.table_pdf(wo, wi) } else { 0.0 };
+        let table = if a < 1.0 {
+            self.table_pdf(b, wo, wi)
+        } else {
+            0.0
+        };
         acdf_tabulated::mix_with_cosine(a, table, wi)
     }
+}
 
-    /// The breakpoints (4 bytes each) and every slice's stored arrays.
-    fn storage_bytes(&self) -> usize {
-        stored_bytes(
-            self.theta_breakpoints.len() + self.phi_breakpoints.len(),
-            &self.slices,
-        )
-    }
+/// What the draws and densities of one outgoing direction share
+/// ([`AnisotropicOutgoingSampler::blend`]): the four slices around it,
+/// their bilinear weights, and the rotation from the slices' axes to the
+/// shading frame.
+#[derive(Debug, Clone, Copy)]
+struct Blend {
+    slices: [usize; 4],
+    weights: [f32; 4],
+    rotation: Vec2,
 }
 
 #[cfg(test)]

@@ -89,6 +89,46 @@ fn sample_and_pdf_agree() {
     }
 }
 
+/// `sample_batch` and `pdf_batch`, which find the blend of wo once, give
+/// the bits of `sample` and `pdf` one call at a time, for wo at and
+/// between breakpoints, across the φ_o seam, and invalid; wi without a
+/// density among the others.
+#[test]
+fn batch_forms_equal_single_calls() {
+    let bits =
+        |d: &Option<BxdfSample>| d.map(|d| (d.wi.to_array().map(f32::to_bits), d.pdf.to_bits()));
+    let s = small(Arc::new(Brushed)).with_cosine_mix(0.05).unwrap();
+    let theta = s.theta_breakpoint_angles();
+    let phi = s.phi_breakpoint_angles();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(26);
+    let u: Vec<Vec2> = (0..200)
+        .map(|_| Vec2::new(rng.random(), rng.random()))
+        .chain([Vec2::ZERO, Vec2::new(1.0, -0.5), Vec2::new(f32::NAN, 0.5)])
+        .collect();
+    for wo in [
+        direction(theta[1], phi[1]),
+        direction(0.5 * (theta[1] + theta[2]), 0.5 * (phi[1] + phi[2])),
+        direction(0.7, TAU - 1e-4),
+        Vec3::new(0.0, 0.0, -1.0),
+    ] {
+        let mut drawn = vec![None; u.len()];
+        s.sample_batch(wo, &u, &mut drawn);
+        for (&u, d) in u.iter().zip(&drawn) {
+            assert_eq!(bits(&s.sample(wo, u)), bits(d), "{wo} {u}");
+        }
+        let wis: Vec<Vec3> = drawn
+            .iter()
+            .map(|d| d.map_or(direction(0.3, 2.0), |d| d.wi))
+            .chain([Vec3::new(0.0, 0.0, -1.0), -wo, Vec3::NAN])
+            .collect();
+        let mut densities = vec![0.0; wis.len()];
+        s.pdf_batch(wo, &wis, &mut densities);
+        for (&wi, &p) in wis.iter().zip(&densities) {
+            assert_eq!(s.pdf(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
+        }
+    }
+}
+
 /// The density is continuous in wo across the φ_o seam and across an
 /// inner φ_o breakpoint: just below and just above, the densities of fixed
 /// wi agree to within the change of the blend weights.
