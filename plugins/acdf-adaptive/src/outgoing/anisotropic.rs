@@ -49,8 +49,8 @@
 pub mod persist;
 
 use super::{
-    blend_divergence, outgoing_at, served_between, OutgoingBuilder, PackedCdf2D, CAP_STEP,
-    CAP_TRIES,
+    blend_divergence, coordinates, half_vector, outgoing_at, served_between, OutgoingBuilder,
+    PackedCdf2D, CAP_STEP, CAP_TRIES,
 };
 use crate::AdaptiveCdf2D;
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
@@ -668,34 +668,18 @@ impl AnisotropicOutgoingSampler {
     /// The blended table density at wi for a valid wo whose [`Blend`] is
     /// `b`, per solid angle.
     fn table_pdf(&self, b: &Blend, wo: Vec3, wi: Vec3) -> f32 {
-        let sum = wi + wo;
-        let length_squared = sum.length_squared();
-        if !(length_squared > 1e-20 && length_squared.is_finite()) {
+        let c = coordinates::<true>(self.map, b.rotation, wo, wi);
+        if !c.defined {
             return 0.0;
         }
-        let scale = length_squared.sqrt().recip();
-        let rho = sin_theta(sum);
-        let sin_h = rho * scale;
-        let wo_h = wo.dot(sum) * scale;
-        if !(wo_h > 0.0) {
-            return 0.0;
-        }
-        let v = self.map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
-        let r = b.rotation;
-        let (hx, hy) = (r.x * sum.x + r.y * sum.y, r.x * sum.y - r.y * sum.x);
-        let mut phi = fast_atan2(hy, hx);
-        if phi < 0.0 {
-            phi += TAU;
-        }
-        let x = (phi / TAU).clamp(0.0, ONE_MINUS_EPSILON);
         let (nx, ny) = (self.n_phi_h as f32, self.n_theta_h as f32);
         let mut p = 0.0;
         for (&i, &w) in b.slices.iter().zip(&b.weights) {
             if w > 0.0 {
-                p += w * self.slices[i].pdf(x, v, nx, ny);
+                p += w * self.slices[i].pdf(c.x, c.v, nx, ny);
             }
         }
-        let p = p / (self.map.jacobian(v, sin_h) * 4.0 * wo_h);
+        let p = p / (self.map.jacobian(c.v, c.sin_h) * 4.0 * c.wo_h);
         if p.is_finite() && p > 0.0 {
             p
         } else {
@@ -730,13 +714,7 @@ impl AnisotropicOutgoingSampler {
         let (x, v) = d.p;
         let (sin_h, cos_h) = self.map.angles(v);
         let (sin_p, cos_p) = sin_cos_turns(x);
-        let r = b.rotation;
-        let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
-        let h = Vec3::new(
-            r.x * local.x - r.y * local.y,
-            r.y * local.x + r.x * local.y,
-            local.z,
-        );
+        let (_, h) = half_vector(b.rotation, ((sin_h, cos_h), (sin_p, cos_p)));
         (2.0 * wo.dot(h) * h - wo).normalize_or_zero()
     }
 }

@@ -314,7 +314,7 @@ impl OutgoingSampler {
         };
         for l in 0..n {
             let (wo, o) = frames.lane(l);
-            let c = coordinates::<false>(map, &o, wo, wi[l]);
+            let c = coordinates::<false>(map, o.rotation, wo, wi[l]);
             lanes.x[l] = c.x;
             lanes.v[l] = c.v;
             lanes.sin_h[l] = c.sin_h;

@@ -663,13 +663,7 @@ fn draw_at(
     point: &TablePoint,
     ((sin_h, cos_h), (sin_p, cos_p)): ((f32, f32), (f32, f32)),
 ) -> Drawn {
-    let r = o.rotation;
-    let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
-    let h = Vec3::new(
-        r.x * local.x - r.y * local.y,
-        r.y * local.x + r.x * local.y,
-        local.z,
-    );
+    let (local, h) = half_vector(o.rotation, ((sin_h, cos_h), (sin_p, cos_p)));
     // wo·h in the slice's axes, where wo is (sin θ_o, 0, cos θ_o): it
     // does not wait for the rotation of h.
     let wo_h = o.sin_o * local.x + wo.z * local.z;
@@ -682,6 +676,24 @@ fn draw_at(
         table,
         shortcut: point.same & geometry & is_positive_finite(table),
     }
+}
+
+/// The half vector of the angles ((sin, cos) θ_h, (sin, cos) φ_h) in the
+/// slice's axes (`local`) and turned by `rotation` (cos φ, sin φ) about the
+/// normal into the shading frame (`h`).
+#[inline(always)]
+fn half_vector(
+    rotation: Vec2,
+    ((sin_h, cos_h), (sin_p, cos_p)): ((f32, f32), (f32, f32)),
+) -> (Vec3, Vec3) {
+    let r = rotation;
+    let local = Vec3::new(sin_h * cos_p, sin_h * sin_p, cos_h);
+    let h = Vec3::new(
+        r.x * local.x - r.y * local.y,
+        r.y * local.x + r.x * local.y,
+        local.z,
+    );
+    (local, h)
 }
 
 /// Where the density of a wi is looked up: the table point (x, v) of its
@@ -697,8 +709,9 @@ struct Coordinates {
     defined: bool,
 }
 
-/// The coordinates of wi for wo (whose [`Outgoing`] is `o`); undefined
-/// coordinates may hold anything.
+/// The coordinates of wi for wo, whose slices' axes are turned by
+/// `rotation` (cos φ, sin φ) about the normal; undefined coordinates may
+/// hold anything.
 ///
 /// With `ONE` false (the batch path) free of branches like [`draw_at`], so
 /// that a loop over a chunk compiles to SIMD. With `ONE` true (one call at
@@ -709,7 +722,7 @@ struct Coordinates {
 /// `pdf` and per `sample` (callgrind, the `hotpath` example on the
 /// built-in nickel).
 #[inline(always)]
-fn coordinates<const ONE: bool>(map: HalfMap, o: &Outgoing, wo: Vec3, wi: Vec3) -> Coordinates {
+fn coordinates<const ONE: bool>(map: HalfMap, rotation: Vec2, wo: Vec3, wi: Vec3) -> Coordinates {
     let sum = wi + wo;
     let length_squared = sum.length_squared();
     // `&` rather than `&&`: no short-circuit branches.
@@ -725,7 +738,7 @@ fn coordinates<const ONE: bool>(map: HalfMap, o: &Outgoing, wo: Vec3, wi: Vec3) 
         return Coordinates::default();
     }
     let v = map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
-    let r = o.rotation;
+    let r = rotation;
     let (hx, hy) = (r.x * sum.x + r.y * sum.y, r.x * sum.y - r.y * sum.x);
     let mut phi = fast_atan2(hy, hx);
     if phi < 0.0 {
@@ -873,7 +886,7 @@ impl OutgoingSampler {
         if !wi.is_finite() || !(wi.z > 0.0) {
             return 0.0;
         }
-        self.pdf_with(o, wi, &coordinates::<true>(self.map, o, wo, wi))
+        self.pdf_with(o, wi, &coordinates::<true>(self.map, o.rotation, wo, wi))
     }
 
     /// [`pdf_in`](Self::pdf_in) given the coordinates `c` of wi (found for
