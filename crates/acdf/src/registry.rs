@@ -184,14 +184,14 @@ impl SamplerOps for OutgoingSampler {
 }
 
 impl SamplerOps for AnisotropicOutgoingSampler {
-    /// θ_o breakpoints x φ_o breakpoints / fine θ_o x fine φ_o nodes x the
-    /// mean kept vertices.
+    /// θ_o breakpoints x mean φ_o breakpoints per θ_o row / fine θ_o x
+    /// fine φ_o nodes x the mean kept vertices.
     fn resolution_label(&self) -> String {
         let (m, c) = AnisotropicOutgoingSampler::mean_vertices(self);
+        let rows = self.theta_breakpoint_angles().len();
         format!(
-            "{}x{}/{}x{}x{m:.1}x{c:.1}",
-            self.theta_breakpoint_angles().len(),
-            self.phi_breakpoint_angles().len(),
+            "{rows}x{:.1}/{}x{}x{m:.1}x{c:.1}",
+            self.slices().len() as f64 / rows as f64,
             self.builder().fine,
             self.fine_phi()
         )

@@ -24,7 +24,7 @@
 //! - [`outgoing`]: [`OutgoingSampler`], slices kept only at the θ_o
 //!   breakpoints a material needs, blended linearly between them, stored
 //!   in 16 bits; for anisotropic materials [`AnisotropicOutgoingSampler`],
-//!   the same on a grid of θ_o and φ_o breakpoints.
+//!   the same at θ_o breakpoints, each with φ_o breakpoints of its own.
 //!
 //! # Tolerances and how the defaults were chosen
 //!

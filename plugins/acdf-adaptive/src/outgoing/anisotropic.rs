@@ -18,30 +18,47 @@
 //! **Building.** The material is tabulated at `fine` θ_o nodes
 //! u_j = j / (fine - 1) (θ_o = (π/2) u_j², as in the isotropic sampler)
 //! times `fine_phi` φ_o nodes φ_l = 2π l / fine_phi, with [`tabulate_for`]
-//! (from φ_o: on the material turned by φ_l). Breakpoints are chosen greedily, as in
-//! the isotropic sampler, along each axis: along θ_o the next kept node
-//! is the farthest for which every dropped node of every φ_o column is
+//! (from φ_o: on the material turned by φ_l). Breakpoints are chosen
+//! greedily, as in the isotropic sampler: along θ_o the next kept node is
+//! the farthest for which every dropped node of every φ_o column is
 //! reproduced by the linear blend of its two kept neighbours within
-//! `budget` of chi-square divergence; along φ_o the same over every θ_o
-//! row, from φ_o = 0 round to 2π (the node at 2π is the one at 0, so the
-//! last interval wraps across the seam). The kept slices are the tensor
-//! grid of the two breakpoint sets; each gets the support pass of
-//! [`fill_support`] for the outgoing directions of the four grid cells
-//! around it, is simplified into an [`AdaptiveCdf2D`] (first θ_h row
-//! pinned) and stored as a [`PackedCdf2D`].
+//! `budget` of chi-square divergence. Then each kept θ_o row gets φ_o
+//! breakpoints of its own, the same way along its fine φ_o nodes, from
+//! φ_o = 0 round to 2π (the node at 2π is the one at 0, so the last
+//! interval wraps across the seam). A row keeps what its own θ_o needs:
+//! on the normal one breakpoint, since φ_o is then undefined; towards the
+//! horizon, where the cut-off wi.z = 0 moves through the lobe as φ_o
+//! turns, more. (One set for every row, a tensor grid, would give every
+//! row what the most demanding rows need: on the GGX lobe of the
+//! `anisotropic_rgl` example at the budget 0.051, 96 slices where the rows
+//! keep 51 in all, counted on its fine tables in the absolute frame.)
+//! Each kept slice gets the support pass of
+//! [`fill_support`] for the outgoing directions it serves (from the
+//! previous to the next θ_o row, and from the previous to the next φ_o
+//! breakpoint of its row), is simplified into an [`AdaptiveCdf2D`] (first
+//! θ_h row pinned) and stored as a [`PackedCdf2D`].
 //!
-//! **Sampling.** For wo between θ_o breakpoints k, k + 1 (weight t of the
-//! second, linear in u_o) and φ_o breakpoints m, m + 1 (weight s, linear
-//! in φ_o, m + 1 taken modulo their count), slice (k, m) is drawn from with
-//! probability (1 - t)(1 - s), (k, m + 1) with (1 - t) s, (k + 1, m) with
-//! t (1 - s) and (k + 1, m + 1) with t s (u.x decides and is rescaled). The
-//! density is the same mixture of the four slices' densities: exactly the
-//! density of that two-step draw, and continuous in wo, across the φ_o
-//! seam as well (at φ_o → 2π, s → 1 and slice m + 1 is slice 0, which has
-//! all the weight at φ_o = 0). On the normal, φ_o = 0.
+//! **Sampling.** For wo between θ_o rows k, k + 1 (weight t of the second,
+//! linear in u_o), and in each row r of the two between its φ_o
+//! breakpoints m_r, m_r + 1 (weight s_r, linear in φ_o, m_r + 1 taken
+//! modulo the row's count), slice (k, m_k) is drawn from with probability
+//! (1 - t)(1 - s_k), (k, m_k + 1) with (1 - t) s_k, (k + 1, m_{k+1}) with
+//! t (1 - s_{k+1}) and (k + 1, m_{k+1} + 1) with t s_{k+1} (u.x decides and
+//! is rescaled). The density is the same mixture of the four slices'
+//! densities: exactly the density of that two-step draw, and continuous in
+//! wo: in θ_o because row k + 1 has no weight at row k, in φ_o within each
+//! row, across the seam as well (at φ_o → 2π, s_r → 1 and slice m_r + 1 is
+//! the row's slice 0, which has all the weight at φ_o = 0). On the normal,
+//! φ_o = 0.
 //!
-//! **Storage** counts every byte kept: the two breakpoint sets (f32) and
-//! each slice's arrays.
+//! **Storage** counts every byte kept: the breakpoints (f32), a count per
+//! θ_o row, and each slice's arrays. Under a cap
+//! ([`OutgoingBuilder::max_bytes`]) the tolerance and the budget grow
+//! together by [`CAP_STEP`] until the sampler fits (at
+//! most 7 times), judged first on an estimate that skips the support
+//! passes (the fine tables at the kept nodes, simplified), then on builds;
+//! once raised, they come back by one [`FILL_STEP`]
+//! when the sampler still fits there.
 
 // `!(x > 0.0)` is how this module says "not positive, or NaN".
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -50,7 +67,7 @@ pub mod persist;
 
 use super::{
     blend_divergence, coordinates, half_vector, outgoing_at, served_between, OutgoingBuilder,
-    PackedCdf2D, CAP_STEP, CAP_TRIES,
+    PackedCdf2D, CAP_STEP, CAP_TRIES, FILL_STEP,
 };
 use crate::AdaptiveCdf2D;
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
@@ -194,16 +211,32 @@ pub struct AnisotropicOutgoingSampler {
     map: HalfMap,
     /// u_o of each kept θ_o slice row: 0 first, 1 last, increasing.
     pub(crate) theta_breakpoints: Vec<f32>,
-    /// φ_o / 2π of each kept φ_o slice column: 0 first, increasing, below 1.
-    pub(crate) phi_breakpoints: Vec<f32>,
-    /// Row-major: slice (k, m) at k · phi_breakpoints.len() + m.
+    /// For each θ_o row, φ_o / 2π of its φ_o breakpoints: 0 first,
+    /// increasing, below 1.
+    pub(crate) phi_breakpoints: Vec<Vec<f32>>,
+    /// Where each θ_o row's slices start in `slices` (one more entry than
+    /// rows, the last the slice count).
+    row_start: Vec<usize>,
+    /// Row by row: slice (k, m) at `row_start[k] + m`.
     pub(crate) slices: Vec<PackedCdf2D>,
     cosine_fraction: f32,
 }
 
-/// The bytes of the breakpoints (f32) and the slices.
-fn stored_bytes(breakpoints: usize, slices: &[PackedCdf2D]) -> usize {
-    4 * breakpoints + slices.iter().map(PackedCdf2D::storage_bytes).sum::<usize>()
+/// The bytes of the breakpoints (f32), a count (u32) per θ_o row, and the
+/// slices.
+fn stored_bytes(theta: usize, phi: &[Vec<f32>], slices: &[PackedCdf2D]) -> usize {
+    let breakpoints = theta + phi.iter().map(Vec::len).sum::<usize>();
+    4 * (breakpoints + phi.len()) + slices.iter().map(PackedCdf2D::storage_bytes).sum::<usize>()
+}
+
+/// One build of the sampler's parts at a tolerance and budget: the kept
+/// θ_o nodes, each row's φ_o breakpoints (turns), the slices row by row,
+/// and the bytes they store.
+struct Built {
+    kept_theta: Vec<usize>,
+    phi: Vec<Vec<f32>>,
+    slices: Vec<PackedCdf2D>,
+    bytes: usize,
 }
 
 /// Greedy breakpoints along an axis of `n` nodes (indices into them), from
@@ -241,23 +274,35 @@ fn choose_theta_breakpoints(p: &[Vec<f32>], u: &[f32], n_phi: usize, budget: f64
     })
 }
 
-/// The φ_o breakpoints (node indices, 0 first) for the same tables: every
-/// dropped node of every θ_o row within `budget` of the blend of its kept
-/// neighbours, round the circle (node `n_phi` is node 0).
-fn choose_phi_breakpoints(p: &[Vec<f32>], n_theta: usize, n_phi: usize, budget: f64) -> Vec<usize> {
+/// The φ_o breakpoints (node indices, 0 first) of one θ_o row, whose
+/// normalised tables at the `row.len()` fine φ_o nodes are `row`: every
+/// dropped node within `budget` of the blend of its kept neighbours, round
+/// the circle (node `row.len()` is node 0).
+fn choose_phi_breakpoints(row: &[Vec<f32>], budget: f64) -> Vec<usize> {
+    let n_phi = row.len();
     let mut kept = greedy(n_phi + 1, |a, b| {
-        ((a + 1)..b)
-            .flat_map(|l| (0..n_theta).map(move |j| (j, l)))
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .all(|(j, l)| {
-                let s = (l - a) as f32 / (b - a) as f32;
-                let row = j * n_phi;
-                blend_divergence(&p[row + l], &p[row + a], &p[row + b % n_phi], s) <= budget
-            })
+        ((a + 1)..b).into_par_iter().all(|l| {
+            let s = (l - a) as f32 / (b - a) as f32;
+            blend_divergence(&row[l], &row[a], &row[b % n_phi], s) <= budget
+        })
     });
     kept.pop();
     kept
+}
+
+/// The φ_o breakpoints of every kept θ_o row (`kept_theta`, fine node
+/// indices) of the normalised tables `p` (θ_o node j, φ_o node l at
+/// j · n_phi + l).
+fn choose_row_breakpoints(
+    p: &[Vec<f32>],
+    kept_theta: &[usize],
+    n_phi: usize,
+    budget: f64,
+) -> Vec<Vec<usize>> {
+    kept_theta
+        .iter()
+        .map(|&j| choose_phi_breakpoints(&p[j * n_phi..(j + 1) * n_phi], budget))
+        .collect()
 }
 
 /// The outgoing directions at φ_o = 0 and the φ_o (in turns) that stand
@@ -286,7 +331,8 @@ fn served_phi(phi: &[f32], m: usize) -> Vec<f32> {
 /// whole circle).
 type SliceKey = [usize; 6];
 
-/// The [`SliceKey`] of the kept slice (i, m).
+/// The [`SliceKey`] of the kept slice (i, m), `kept_phi` the φ_o
+/// breakpoints of row i.
 fn slice_key(
     kept_theta: &[usize],
     kept_phi: &[usize],
@@ -414,8 +460,11 @@ impl AnisotropicOutgoingSampler {
                 .collect()
         };
         let kept_count = |p: &[Vec<f32>]| {
-            choose_theta_breakpoints(p, &u, fine_phi, builder.budget).len()
-                * choose_phi_breakpoints(p, fine, fine_phi, builder.budget).len()
+            let kept_theta = choose_theta_breakpoints(p, &u, fine_phi, builder.budget);
+            choose_row_breakpoints(p, &kept_theta, fine_phi, builder.budget)
+                .iter()
+                .map(Vec::len)
+                .sum::<usize>()
         };
         // An isotropic material keeps one φ_o breakpoint in the relative
         // frame, the fewest there are; an anisotropic one takes the frame
@@ -431,23 +480,27 @@ impl AnisotropicOutgoingSampler {
                 (PhiFrame::Relative, relative)
             }
         };
-        let mut builder = builder;
-        let mut tries = 0;
         // The kept slices' tables (with their support passes) depend only on
-        // the fine nodes of the slice and of its neighbours, so a raise of
-        // the tolerance under the storage cap rebuilds only the slices whose
+        // the fine nodes of the slice and of its neighbours, so another
+        // tolerance under the storage cap rebuilds only the slices whose
         // neighbourhood changed.
         let mut tables: HashMap<SliceKey, Vec<f32>> = HashMap::new();
-        let (kept_theta, kept_phi, slices) = loop {
+        let mut build = |builder: &OutgoingBuilder| -> Result<Built> {
             let kept_theta = choose_theta_breakpoints(&normalised, &u, fine_phi, builder.budget);
-            let kept_phi = choose_phi_breakpoints(&normalised, fine, fine_phi, builder.budget);
-            let phi_kept: Vec<f32> = kept_phi.iter().map(|&l| phi[l]).collect();
-            let cells: Vec<(usize, usize)> = (0..kept_theta.len())
-                .flat_map(|i| (0..kept_phi.len()).map(move |m| (i, m)))
+            let kept_phi =
+                choose_row_breakpoints(&normalised, &kept_theta, fine_phi, builder.budget);
+            let phi_kept: Vec<Vec<f32>> = kept_phi
+                .iter()
+                .map(|row| row.iter().map(|&l| phi[l]).collect())
+                .collect();
+            let cells: Vec<(usize, usize)> = kept_phi
+                .iter()
+                .enumerate()
+                .flat_map(|(i, row)| (0..row.len()).map(move |m| (i, m)))
                 .collect();
             let keys: Vec<SliceKey> = cells
                 .iter()
-                .map(|&(i, m)| slice_key(&kept_theta, &kept_phi, fine_phi, i, m))
+                .map(|&(i, m)| slice_key(&kept_theta, &kept_phi[i], fine_phi, i, m))
                 .collect();
             let mut missing: Vec<(usize, usize, SliceKey)> = Vec::new();
             for (&(i, m), &key) in cells.iter().zip(&keys) {
@@ -464,8 +517,8 @@ impl AnisotropicOutgoingSampler {
                         &*brdf,
                         frame,
                         (u[kept_theta[i]], lo, hi),
-                        phi_kept[m],
-                        &served_phi(&phi_kept, m),
+                        phi_kept[i][m],
+                        &served_phi(&phi_kept[i], m),
                         (n_theta_h, n_phi_h),
                     );
                     (key, values)
@@ -487,16 +540,90 @@ impl AnisotropicOutgoingSampler {
                     PackedCdf2D::from_adaptive(&d, values, n_phi_h, n_theta_h)
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let bytes = stored_bytes(kept_theta.len() + kept_phi.len(), &slices);
-            tries += 1;
-            match builder.max_bytes {
-                Some(cap) if bytes > cap && tries < CAP_TRIES => {
-                    builder.tolerance *= CAP_STEP;
-                    builder.budget *= CAP_STEP;
-                }
-                _ => break (kept_theta, phi_kept, slices),
-            }
+            let bytes = stored_bytes(kept_theta.len(), &phi_kept, &slices);
+            Ok(Built {
+                kept_theta,
+                phi: phi_kept,
+                slices,
+                bytes,
+            })
         };
+        // The bytes a build would store, estimated from the fine tables of
+        // the nodes it keeps, without the support passes (which only give
+        // mass to cells a slice's own table has none in, so that the
+        // estimate comes out a little below what the build stores: 12% on
+        // the GGX lobe of the `anisotropic_rgl` example): a tolerance whose
+        // estimate is over the cap is raised without a build, whose support
+        // passes take most of the time.
+        let estimate = |builder: &OutgoingBuilder| -> Result<usize> {
+            let kept_theta = choose_theta_breakpoints(&normalised, &u, fine_phi, builder.budget);
+            let kept_phi =
+                choose_row_breakpoints(&normalised, &kept_theta, fine_phi, builder.budget);
+            let nodes: Vec<usize> = kept_theta
+                .iter()
+                .zip(&kept_phi)
+                .flat_map(|(&j, row)| row.iter().map(move |&l| j * fine_phi + l))
+                .collect();
+            let slices = nodes
+                .par_iter()
+                .map(|&i| {
+                    let d = AdaptiveCdf2D::from_values_pinned(
+                        &normalised[i],
+                        n_phi_h,
+                        n_theta_h,
+                        &*builder.simplifier,
+                        builder.tolerance,
+                        1,
+                    )?;
+                    PackedCdf2D::from_adaptive(&d, &normalised[i], n_phi_h, n_theta_h)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let phi_rows: Vec<Vec<f32>> = kept_phi.iter().map(|row| vec![0.0; row.len()]).collect();
+            Ok(stored_bytes(kept_theta.len(), &phi_rows, &slices))
+        };
+        let mut builder = builder;
+        let mut tries = 1;
+        let mut raised = false;
+        if let Some(cap) = builder.max_bytes {
+            while tries < CAP_TRIES && estimate(&builder)? > cap {
+                builder.tolerance *= CAP_STEP;
+                builder.budget *= CAP_STEP;
+                tries += 1;
+                raised = true;
+            }
+        }
+        let mut built = build(&builder)?;
+        if let Some(cap) = builder.max_bytes {
+            // Over the cap: the tolerance and the budget grow together by
+            // CAP_STEP until the sampler fits (or CAP_TRIES tolerances are
+            // spent).
+            while tries < CAP_TRIES && built.bytes > cap {
+                builder.tolerance *= CAP_STEP;
+                builder.budget *= CAP_STEP;
+                built = build(&builder)?;
+                tries += 1;
+                raised = true;
+            }
+            // Raised until it fits: one step of FILL_STEP back (half a
+            // CAP_STEP) when that still fits, spending the room on variance.
+            if raised && built.bytes <= cap {
+                let mut finer = builder.clone();
+                finer.tolerance /= FILL_STEP;
+                finer.budget /= FILL_STEP;
+                if estimate(&finer)? <= cap {
+                    let candidate = build(&finer)?;
+                    if candidate.bytes <= cap {
+                        (builder, built) = (finer, candidate);
+                    }
+                }
+            }
+        }
+        let Built {
+            kept_theta,
+            phi: kept_phi,
+            slices,
+            ..
+        } = built;
         let theta_breakpoints = kept_theta.iter().map(|&k| u[k]).collect();
         Ok(Self::from_parts(
             brdf,
@@ -516,9 +643,14 @@ impl AnisotropicOutgoingSampler {
         (fine_phi, frame): (usize, PhiFrame),
         (n_theta_h, n_phi_h): (usize, usize),
         theta_breakpoints: Vec<f32>,
-        phi_breakpoints: Vec<f32>,
+        phi_breakpoints: Vec<Vec<f32>>,
         slices: Vec<PackedCdf2D>,
     ) -> Self {
+        let mut row_start = vec![0];
+        for row in &phi_breakpoints {
+            row_start.push(row_start[row_start.len() - 1] + row.len());
+        }
+        debug_assert_eq!(row_start[row_start.len() - 1], slices.len());
         AnisotropicOutgoingSampler {
             name: builder.name(),
             brdf,
@@ -530,6 +662,7 @@ impl AnisotropicOutgoingSampler {
             map: HalfMap::new(n_theta_h),
             theta_breakpoints,
             phi_breakpoints,
+            row_start,
             slices,
             cosine_fraction: 0.0,
         }
@@ -575,15 +708,24 @@ impl AnisotropicOutgoingSampler {
             .collect()
     }
 
-    /// The kept φ_o breakpoints, as φ_o in radians (0 first).
-    pub fn phi_breakpoint_angles(&self) -> Vec<f32> {
-        self.phi_breakpoints.iter().map(|&x| TAU * x).collect()
+    /// The kept φ_o breakpoints of each θ_o row, as φ_o in radians (0
+    /// first).
+    pub fn phi_breakpoint_angles(&self) -> Vec<Vec<f32>> {
+        self.phi_breakpoints
+            .iter()
+            .map(|row| row.iter().map(|&x| TAU * x).collect())
+            .collect()
     }
 
-    /// The kept slices, row-major: slice (θ_o breakpoint k, φ_o breakpoint
-    /// m) at k · (number of φ_o breakpoints) + m.
+    /// The kept slices, row by row: slice (θ_o row k, its φ_o breakpoint
+    /// m) at [`row_start`](Self::row_start)`(k) + m`.
     pub fn slices(&self) -> &[PackedCdf2D] {
         &self.slices
+    }
+
+    /// Where θ_o row k's slices start in [`slices`](Self::slices).
+    pub fn row_start(&self, k: usize) -> usize {
+        self.row_start[k]
     }
 
     /// Half-vector cells per slice (θ_h, φ_h).
@@ -609,7 +751,7 @@ impl AnisotropicOutgoingSampler {
     }
 
     /// The four slices around a valid wo and their weights (summing to 1):
-    /// (k, m), (k, m + 1), (k + 1, m), (k + 1, m + 1).
+    /// (k, m_k), (k, m_k + 1), (k + 1, m_{k+1}), (k + 1, m_{k+1} + 1).
     #[inline]
     fn blend_of(&self, wo: Vec3) -> ([usize; 4], [f32; 4]) {
         let s_theta = sin_theta(wo);
@@ -630,16 +772,32 @@ impl AnisotropicOutgoingSampler {
         } else {
             0.0
         };
-        let p = &self.phi_breakpoints;
+        let (lo, s_lo) = self.phi_blend(k, turns);
+        let (hi, s_hi) = self.phi_blend(k + 1, turns);
+        (
+            [lo[0], lo[1], hi[0], hi[1]],
+            [
+                (1.0 - t) * (1.0 - s_lo),
+                (1.0 - t) * s_lo,
+                t * (1.0 - s_hi),
+                t * s_hi,
+            ],
+        )
+    }
+
+    /// In θ_o row k, the slices of the φ_o breakpoints m and m + 1 around
+    /// φ_o = 2π `turns` (m + 1 modulo the row's count) and the weight of
+    /// the second.
+    #[inline]
+    fn phi_blend(&self, k: usize, turns: f32) -> ([usize; 2], f32) {
+        let p = &self.phi_breakpoints[k];
         let n = p.len();
         let m = p[1..].iter().filter(|&&x| x <= turns).count();
         let next = if m + 1 == n { 0 } else { m + 1 };
         let hi = if m + 1 == n { 1.0 } else { p[m + 1] };
         let s = ((turns - p[m]) / (hi - p[m])).clamp(0.0, 1.0);
-        (
-            [k * n + m, k * n + next, (k + 1) * n + m, (k + 1) * n + next],
-            [(1.0 - t) * (1.0 - s), (1.0 - t) * s, t * (1.0 - s), t * s],
-        )
+        let start = self.row_start[k];
+        ([start + m, start + next], s)
     }
 
     /// (cos φ_o, sin φ_o) of a valid wo in the relative frame (φ_o = 0 on
@@ -779,10 +937,12 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
         }
     }
 
-    /// The breakpoints (4 bytes each) and every slice's stored arrays.
+    /// The breakpoints (4 bytes each), a count per θ_o row, and every
+    /// slice's stored arrays.
     fn storage_bytes(&self) -> usize {
         stored_bytes(
-            self.theta_breakpoints.len() + self.phi_breakpoints.len(),
+            self.theta_breakpoints.len(),
+            &self.phi_breakpoints,
             &self.slices,
         )
     }

@@ -32,7 +32,7 @@ pub const KIND: &str = "outgoing";
 /// The layout version of the body this build writes and reads: 3, whose
 /// slices blend linearly in cos θ_o. Layout 1 (blending linearly in u_o)
 /// is refused: its breakpoints were chosen for the other blend, so the
-/// sampler is rebuilt instead (2 is the anisotropic layout).
+/// sampler is rebuilt instead (2 and 4 are the anisotropic layouts).
 pub const OUTGOING_VERSION: u32 = 3;
 
 pub(crate) fn write_u16s(w: &mut ByteWriter, values: &[u16]) {

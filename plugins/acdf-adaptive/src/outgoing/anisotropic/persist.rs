@@ -12,9 +12,10 @@
 //! material name (`string`), whether it is isotropic (u8, 0 or 1), its
 //! fingerprint (u64), the half-vector cells θ_h and φ_h (2 × u32), the
 //! cosine mixing fraction (f32), the θ_o breakpoints u_o (`f32 array`,
-//! increasing from 0 to 1), the φ_o breakpoints in turns (`f32 array`,
-//! increasing from 0, below 1), then the slices row by row (θ_o
-//! breakpoint, then φ_o breakpoint), each as in the isotropic layout: the
+//! increasing from 0 to 1), for each θ_o breakpoint its row's φ_o
+//! breakpoints in turns (`f32 array`, increasing from 0, below 1), then
+//! the slices row by row (θ_o breakpoint, then φ_o breakpoint of the row),
+//! each as in the isotropic layout: the
 //! marginal positions (u16), the marginal CDF values (u16), the
 //! conditional offsets (u16), the conditional positions (u8) and the
 //! conditional CDF values (u16), each array a u32 count and the values.
@@ -32,11 +33,18 @@ use acdf_tabulated::Resolution;
 use std::path::Path;
 use std::sync::Arc;
 
-/// The layout version of the anisotropic body.
-pub const ANISOTROPIC_VERSION: u32 = 2;
+/// The layout version of the anisotropic body: 4, with φ_o breakpoints
+/// per θ_o row.
+pub const ANISOTROPIC_VERSION: u32 = 4;
 
-// The two layouts of the kind must stay apart.
-const _: () = assert!(ANISOTROPIC_VERSION != OUTGOING_VERSION);
+/// The earlier anisotropic layout, one set of φ_o breakpoints for every θ_o
+/// row: recognised, so that its files are refused with the reason, and
+/// the sampler is built again.
+const TENSOR_VERSION: u32 = 2;
+
+// The layouts of the kind must stay apart.
+const _: () =
+    assert!(ANISOTROPIC_VERSION != OUTGOING_VERSION && TENSOR_VERSION != OUTGOING_VERSION);
 
 /// Whether a sampler file of kind [`KIND`] holds the anisotropic layout
 /// (its envelope checked; an error for a file of another kind).
@@ -49,7 +57,8 @@ pub fn is_anisotropic(bytes: &[u8]) -> Result<bool, PersistError> {
             expected: KIND.to_string(),
         });
     }
-    Ok(r.u32("outgoing version")? == ANISOTROPIC_VERSION)
+    let version = r.u32("outgoing version")?;
+    Ok(version == ANISOTROPIC_VERSION || version == TENSOR_VERSION)
 }
 
 impl AnisotropicOutgoingSampler {
@@ -73,7 +82,9 @@ impl AnisotropicOutgoingSampler {
         w.length(self.n_phi_h);
         w.f32(self.cosine_fraction);
         w.f32_array(&self.theta_breakpoints);
-        w.f32_array(&self.phi_breakpoints);
+        for row in &self.phi_breakpoints {
+            w.f32_array(row);
+        }
         for s in &self.slices {
             write_slice(&mut w, s);
         }
@@ -98,10 +109,15 @@ impl AnisotropicOutgoingSampler {
         }
         let version = r.u32("outgoing version")?;
         if version != ANISOTROPIC_VERSION {
+            let why = if version == TENSOR_VERSION {
+                " (layout 2 keeps one set of phi_o breakpoints for every theta_o row: build the sampler again)"
+            } else {
+                ""
+            };
             return Err(invalid(
                 "outgoing version",
                 format!(
-                    "{version} is not the anisotropic layout this build reads ({ANISOTROPIC_VERSION})"
+                    "{version} is not the anisotropic layout this build reads ({ANISOTROPIC_VERSION}){why}"
                 ),
             ));
         }
@@ -155,18 +171,25 @@ impl AnisotropicOutgoingSampler {
                 "not increasing from 0 to 1".into(),
             ));
         }
-        let phi = r.f32_array("phi_o breakpoints")?;
-        let m = phi.len();
-        if m == 0 || phi[0] != 0.0 || !(phi[m - 1] < 1.0) || phi.windows(2).any(|w| !(w[1] > w[0]))
-        {
-            return Err(invalid(
-                "phi_o breakpoints",
-                "not increasing from 0 and below 1".into(),
-            ));
+        let mut phi = Vec::with_capacity(n);
+        for _ in 0..n {
+            let row = r.f32_array("phi_o breakpoints")?;
+            let m = row.len();
+            if m == 0
+                || row[0] != 0.0
+                || !(row[m - 1] < 1.0)
+                || row.windows(2).any(|w| !(w[1] > w[0]))
+            {
+                return Err(invalid(
+                    "phi_o breakpoints",
+                    "not increasing from 0 and below 1".into(),
+                ));
+            }
+            phi.push(row);
         }
         // Each slice takes at least five u32 counts: a count beyond the
         // bytes left is a corrupt file, never an allocation.
-        let count = n.saturating_mul(m);
+        let count: usize = phi.iter().map(Vec::len).sum();
         if count.saturating_mul(20) > r.remaining() {
             return Err(PersistError::FieldOverrun {
                 field: "slices",
