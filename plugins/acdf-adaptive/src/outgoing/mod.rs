@@ -39,6 +39,22 @@
 //! weight is positive unless wo sits on the other breakpoint, whose own
 //! slice then covers it.
 //!
+//! **Why each slice keeps its own vertices.** If all kept slices shared
+//! one set of vertices, a draw could search the blended CDF once per axis,
+//! and a density could read both slices at the same indices: two searches
+//! where the blend of two slices with their own vertices makes four. The
+//! price is variance. The measurement used the kept slices of this builder,
+//! each given the vertices that the same simplifier and tolerance keep on
+//! the mean of their normalised tables, and stored with positions once and
+//! 16-bit CDF values per slice. At about equal storage, the relative
+//! variance of `acdf report` was 10 to 40% higher than with the slices' own
+//! vertices:
+//! - nbrdf:nickel: 4.04e-2 at 10.5 KB, against 3.67e-2 at 11.2 KB;
+//! - nbrdf:blue-metallic-paint: 4.89e-2 at 11.7 KB, against 4.07e-2 at 13.2 KB;
+//! - nbrdf:gray-plastic: 7.13e-2 at 12.2 KB, against 5.22e-2 at 11.1 KB.
+//!
+//! (Shared: tolerance 6e-3. Own vertices: 9e-3, 9e-3 and 1.35e-2.)
+//!
 //! **Storage** counts every byte kept: the breakpoints (f32) and each
 //! slice's arrays.
 
