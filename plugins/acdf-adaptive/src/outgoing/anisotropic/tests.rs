@@ -178,14 +178,16 @@ fn batch_forms_equal_single_calls() {
 }
 
 /// The density is continuous in wo across the φ_o seam and across an
-/// inner φ_o breakpoint of a row: just below and just above, the
-/// densities of fixed wi agree to within the change of the blend weights.
+/// inner φ_o breakpoint of a row, for θ_o halfway to the next row (both
+/// rows blended): just below and just above, the densities of fixed wi
+/// agree to within the change of the blend weights.
 #[test]
 fn pdf_is_continuous_in_phi_o() {
     let s = small(Arc::new(Brushed));
     let k = busiest_row(&s);
     let phi = &s.phi_breakpoint_angles()[k];
-    let theta = s.theta_breakpoint_angles()[k];
+    let rows = s.theta_breakpoint_angles();
+    let theta = 0.5 * (rows[k] + rows[k + 1]);
     let wis = spread_wis();
     for at in [0.0, phi[phi.len() / 2]] {
         let compared = compare_densities(&s, &wis, |e| direction(theta, at + e));
