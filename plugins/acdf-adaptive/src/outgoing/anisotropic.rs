@@ -222,11 +222,11 @@ pub struct AnisotropicOutgoingSampler {
     cosine_fraction: f32,
 }
 
-/// The bytes of the breakpoints (f32), a count (u32) per θ_o row, and the
-/// slices.
-fn stored_bytes(theta: usize, phi: &[Vec<f32>], slices: &[PackedCdf2D]) -> usize {
-    let breakpoints = theta + phi.iter().map(Vec::len).sum::<usize>();
-    4 * (breakpoints + phi.len()) + slices.iter().map(PackedCdf2D::storage_bytes).sum::<usize>()
+/// The bytes of `rows` θ_o rows holding `slices`: per row its θ_o
+/// breakpoint and its count of φ_o breakpoints, per slice its φ_o
+/// breakpoint (4 bytes each), and the slices' arrays.
+fn stored_bytes(rows: usize, slices: &[PackedCdf2D]) -> usize {
+    4 * (2 * rows + slices.len()) + slices.iter().map(PackedCdf2D::storage_bytes).sum::<usize>()
 }
 
 /// One build of the sampler's parts at a tolerance and budget: the kept
@@ -290,19 +290,21 @@ fn choose_phi_breakpoints(row: &[Vec<f32>], budget: f64) -> Vec<usize> {
     kept
 }
 
-/// The φ_o breakpoints of every kept θ_o row (`kept_theta`, fine node
-/// indices) of the normalised tables `p` (θ_o node j, φ_o node l at
-/// j · n_phi + l).
-fn choose_row_breakpoints(
+/// The kept nodes of the normalised tables `p` (θ_o node j at `u[j]`, φ_o
+/// node l at j · n_phi + l) at `budget`: the θ_o breakpoints (fine node
+/// indices), and for each the φ_o breakpoints of its row.
+fn kept_nodes(
     p: &[Vec<f32>],
-    kept_theta: &[usize],
+    u: &[f32],
     n_phi: usize,
     budget: f64,
-) -> Vec<Vec<usize>> {
-    kept_theta
+) -> (Vec<usize>, Vec<Vec<usize>>) {
+    let kept_theta = choose_theta_breakpoints(p, u, n_phi, budget);
+    let kept_phi = kept_theta
         .iter()
         .map(|&j| choose_phi_breakpoints(&p[j * n_phi..(j + 1) * n_phi], budget))
-        .collect()
+        .collect();
+    (kept_theta, kept_phi)
 }
 
 /// The outgoing directions at φ_o = 0 and the φ_o (in turns) that stand
@@ -460,8 +462,8 @@ impl AnisotropicOutgoingSampler {
                 .collect()
         };
         let kept_count = |p: &[Vec<f32>]| {
-            let kept_theta = choose_theta_breakpoints(p, &u, fine_phi, builder.budget);
-            choose_row_breakpoints(p, &kept_theta, fine_phi, builder.budget)
+            kept_nodes(p, &u, fine_phi, builder.budget)
+                .1
                 .iter()
                 .map(Vec::len)
                 .sum::<usize>()
@@ -486,9 +488,7 @@ impl AnisotropicOutgoingSampler {
         // neighbourhood changed.
         let mut tables: HashMap<SliceKey, Vec<f32>> = HashMap::new();
         let mut build = |builder: &OutgoingBuilder| -> Result<Built> {
-            let kept_theta = choose_theta_breakpoints(&normalised, &u, fine_phi, builder.budget);
-            let kept_phi =
-                choose_row_breakpoints(&normalised, &kept_theta, fine_phi, builder.budget);
+            let (kept_theta, kept_phi) = kept_nodes(&normalised, &u, fine_phi, builder.budget);
             let phi_kept: Vec<Vec<f32>> = kept_phi
                 .iter()
                 .map(|row| row.iter().map(|&l| phi[l]).collect())
@@ -540,7 +540,7 @@ impl AnisotropicOutgoingSampler {
                     PackedCdf2D::from_adaptive(&d, values, n_phi_h, n_theta_h)
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let bytes = stored_bytes(kept_theta.len(), &phi_kept, &slices);
+            let bytes = stored_bytes(kept_theta.len(), &slices);
             Ok(Built {
                 kept_theta,
                 phi: phi_kept,
@@ -551,14 +551,12 @@ impl AnisotropicOutgoingSampler {
         // The bytes a build would store, estimated from the fine tables of
         // the nodes it keeps, without the support passes (which only give
         // mass to cells a slice's own table has none in, so that the
-        // estimate comes out a little below what the build stores: 12% on
-        // the GGX lobe of the `anisotropic_rgl` example): a tolerance whose
+        // estimate comes out a little below what the build stores: 10 to
+        // 12% on the GGX lobe of the `anisotropic_rgl` example): a tolerance whose
         // estimate is over the cap is raised without a build, whose support
         // passes take most of the time.
         let estimate = |builder: &OutgoingBuilder| -> Result<usize> {
-            let kept_theta = choose_theta_breakpoints(&normalised, &u, fine_phi, builder.budget);
-            let kept_phi =
-                choose_row_breakpoints(&normalised, &kept_theta, fine_phi, builder.budget);
+            let (kept_theta, kept_phi) = kept_nodes(&normalised, &u, fine_phi, builder.budget);
             let nodes: Vec<usize> = kept_theta
                 .iter()
                 .zip(&kept_phi)
@@ -578,8 +576,7 @@ impl AnisotropicOutgoingSampler {
                     PackedCdf2D::from_adaptive(&d, &normalised[i], n_phi_h, n_theta_h)
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let phi_rows: Vec<Vec<f32>> = kept_phi.iter().map(|row| vec![0.0; row.len()]).collect();
-            Ok(stored_bytes(kept_theta.len(), &phi_rows, &slices))
+            Ok(stored_bytes(kept_theta.len(), &slices))
         };
         let mut builder = builder;
         let mut tries = 1;
@@ -940,11 +937,7 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
     /// The breakpoints (4 bytes each), a count per θ_o row, and every
     /// slice's stored arrays.
     fn storage_bytes(&self) -> usize {
-        stored_bytes(
-            self.theta_breakpoints.len(),
-            &self.phi_breakpoints,
-            &self.slices,
-        )
+        stored_bytes(self.theta_breakpoints.len(), &self.slices)
     }
 }
 
