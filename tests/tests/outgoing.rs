@@ -82,7 +82,8 @@ fn ggx() -> Arc<dyn Brdf> {
 
 fn anisotropic(brdf: Arc<dyn Brdf>) -> acdf_core::Result<AnisotropicOutgoingSampler> {
     let r: Resolution = "16x8x128x32".parse().expect("a resolution");
-    let builder = OutgoingBuilder::by_name("chi2", None, r.theta_o * ANISOTROPIC_FINE_PER_CELL)?;
+    let builder =
+        OutgoingBuilder::anisotropic_by_name("chi2", None, r.theta_o * ANISOTROPIC_FINE_PER_CELL)?;
     AnisotropicOutgoingSampler::new(brdf, r, builder, r.phi_o * FINE_PHI_PER_CELL)
 }
 

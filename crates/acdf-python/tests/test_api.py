@@ -328,9 +328,9 @@ def test_report_and_sweep_as_python_data() -> None:
         ("adaptive:chi2", 1e-3),
         ("adaptive:chi2", 1e-2),
         # The outgoing sampler's front, at its own scale of the tolerances
-        # (6 times the simplifier's), as `acdf sweep` draws it.
-        ("outgoing:chi2", pytest.approx(6e-3)),
-        ("outgoing:chi2", pytest.approx(6e-2)),
+        # (twice the simplifier's), as `acdf sweep` draws it.
+        ("outgoing:chi2", pytest.approx(2e-3)),
+        ("outgoing:chi2", pytest.approx(2e-2)),
     ]
     assert points[2]["storage_bytes"] > points[3]["storage_bytes"]
     with pytest.raises(acdf.UnknownNameError):

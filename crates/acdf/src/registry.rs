@@ -394,7 +394,8 @@ pub static SAMPLERS: &[SamplerFamily] = &[
                 let r = effective_resolution(m, o.resolution);
                 let fine = r.theta_o.saturating_mul(ANISOTROPIC_FINE_PER_CELL);
                 let fine_phi = r.phi_o.saturating_mul(FINE_PHI_PER_CELL);
-                let builder = OutgoingBuilder::by_name(simplifier.short(), o.tolerance, fine)?;
+                let builder =
+                    OutgoingBuilder::anisotropic_by_name(simplifier.short(), o.tolerance, fine)?;
                 let sampler =
                     AnisotropicOutgoingSampler::new(m.brdf.clone(), r, builder, fine_phi)?;
                 Ok(sampler.with_cosine_mix(o.cosine_mix)?.into())

@@ -88,6 +88,16 @@ use std::sync::Arc;
 /// resolution for an anisotropic material (32 cells: 64 nodes).
 pub const ANISOTROPIC_FINE_PER_CELL: usize = 2;
 
+/// The default tolerance of the anisotropic sampler over its simplifier's
+/// default. Its slices keep their own vertices, so a tolerance costs more
+/// storage per slice than on the isotropic sampler's shared grid; the
+/// storage cap raises it further on every anisotropic material measured.
+pub const ANISOTROPIC_TOLERANCE_SCALE: f64 = 6.0;
+
+/// The budget of chi-square divergence for a dropped slice at the
+/// anisotropic default tolerance; at another tolerance it scales with it.
+pub const ANISOTROPIC_BUDGET: f64 = 0.003;
+
 /// The default number of fine φ_o nodes per φ_o cell of the requested
 /// resolution (16 cells: 32 nodes, 11.25° apart).
 pub const FINE_PHI_PER_CELL: usize = 2;

@@ -13,15 +13,18 @@
 //! Σ p_j² / q_j - 1 over the table cells (p normalised per slice): the
 //! relative variance the blend adds where the BRDF equals its table. Each
 //! kept slice then gets the support pass of [`fill_support`] for every
-//! outgoing direction between its neighbouring breakpoints, is simplified
-//! into an [`AdaptiveCdf2D`] (first θ_h row pinned, as the adaptive
-//! sampler does), and stored as a [`PackedCdf2D`]: 16-bit CDF values,
-//! 16-bit θ_h grid indices and 8-bit φ_h grid indices.
+//! outgoing direction between its neighbouring breakpoints. The simplifier
+//! chooses one grid for all of them on the mean of their normalised
+//! tables (an [`AdaptiveCdf2D`](crate::AdaptiveCdf2D), first θ_h row pinned, as the adaptive
+//! sampler does), and every slice keeps its own masses on that grid as
+//! 16-bit CDF values ([`SharedSlices`]); the grid is stored once, as 16-bit
+//! θ_h and 8-bit φ_h grid indices.
 //!
 //! **Sampling.** For wo with cos θ_o between the cosines c_k > c_{k+1} of
 //! breakpoints k and k + 1, t = (c_k - cos θ_o) / (c_k - c_{k+1}): slice k
 //! is drawn from with probability 1 - t and slice k + 1 with probability t
-//! (u.x decides and is rescaled), and the density is
+//! (u.x decides and is rescaled), the other slice's density is read in the
+//! drawn cell (the grid is shared, so no search), and the density is
 //! p = ((1 - t) p_k(x, v) + t p_{k+1}(x, v)) / (J(v) · 4 (wo·h)), which is
 //! exactly the density of that two-step draw and continuous in wo (the
 //! weights are continuous and equal 0 or 1 at the breakpoints). The weight
@@ -39,24 +42,40 @@
 //! weight is positive unless wo sits on the other breakpoint, whose own
 //! slice then covers it.
 //!
-//! **Why each slice keeps its own vertices.** If all kept slices shared
-//! one set of vertices, a draw could search the blended CDF once per axis,
-//! and a density could read both slices at the same indices: two searches
-//! where the blend of two slices with their own vertices makes four. The
-//! price is variance. The measurement used the kept slices of this builder,
-//! each given the vertices that the same simplifier and tolerance keep on
-//! the mean of their normalised tables, and stored with positions once and
-//! 16-bit CDF values per slice. At about equal storage, the relative
-//! variance of `acdf report` was 10 to 40% higher than with the slices' own
-//! vertices:
-//! - nbrdf:nickel: 4.04e-2 at 10.5 KB, against 3.67e-2 at 11.2 KB;
-//! - nbrdf:blue-metallic-paint: 4.89e-2 at 11.7 KB, against 4.07e-2 at 13.2 KB;
-//! - nbrdf:gray-plastic: 7.13e-2 at 12.2 KB, against 5.22e-2 at 11.1 KB.
+//! **Why the slices share one grid.** With vertices of its own, each slice
+//! fits its own lobe, but a draw then searches the drawn slice (marginal
+//! and conditional) and again the other slice at the drawn point, and a
+//! density searches both: four searches. On one grid a draw searches the
+//! drawn slice's CDF values once per axis and reads the other slice in the
+//! same cell, and a density searches the positions once per axis and reads
+//! both: two searches, and a slice costs two bytes per vertex instead of
+//! five, so the storage cap holds more slices and vertices. The price is
+//! a grid that fits the mean lobe rather than each one. Measured on built-in
+//! nickel (instructions per call, callgrind on the `hotpath` example of
+//! the `acdf` crate) and at the storage cap (`acdf report`, the command of
+//! the README's section on this sampler), slices with their own vertices
+//! (stored as the anisotropic sampler stores them, each tuned as well as
+//! its form allowed) against the shared grid:
 //!
-//! (Shared: tolerance 6e-3. Own vertices: 9e-3, 9e-3 and 1.35e-2.)
+//! | | own vertices | shared grid |
+//! |:--|--:|--:|
+//! | instructions: `sample`, `pdf` | 845, 734 | 701, 599 |
+//! | instructions: `sample_batch`, `pdf_batch` | 568, 492 | 404, 305 |
+//! | nbrdf:nickel: storage, relative variance | 17.0 KiB, 3.355e-2 | 16.6 KiB, 3.639e-2 |
+//! | nbrdf:blue-metallic-paint | 13.0 KiB, 4.071e-2 | 16.3 KiB, 4.180e-2 |
+//! | nbrdf:gray-plastic | 15.6 KiB, 4.708e-2 | 15.3 KiB, 5.542e-2 |
 //!
-//! **Storage** counts every byte kept: the breakpoints (f32) and each
-//! slice's arrays.
+//! Over the 100 MERL materials (`acdf survey`) the shared grid keeps the
+//! seed table's efficiency on more of them (98 against 97) at a higher
+//! median (2.77 against 2.46), as time is what decides on the mirror-like
+//! metals. Among grids chosen on other summaries of the slices, the mean
+//! gave the lowest variance: on the element-wise maximum of the normalised
+//! tables, gray-plastic had 1.771e-1 at 14.2 KiB, and on their root mean
+//! square 6.855e-2 at 16.5 KiB, against 6.285e-2 at 15.7 KiB on the mean
+//! (at the same budget and tolerance).
+//!
+//! **Storage** counts every byte kept: the breakpoints (f32), the grid and
+//! each slice's CDF values.
 
 // `!(x > 0.0)` is how this module says "not positive, or NaN": the negated
 // comparison is the point, since NaN must take the rejecting branch.
@@ -66,12 +85,13 @@ pub mod anisotropic;
 mod batch;
 mod packed;
 pub mod persist;
+mod shared;
 
 pub use anisotropic::AnisotropicOutgoingSampler;
 pub use packed::PackedCdf2D;
+pub use shared::{GridCell, GridDraw, SharedSlices};
 
 use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
-use crate::AdaptiveCdf2D;
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
 use acdf_core::geometry::sin_theta;
 use acdf_core::warp::square_to_cosine_hemisphere;
@@ -90,16 +110,20 @@ use std::sync::Arc;
 ///
 /// With [`TOLERANCE_SCALE`] it was chosen by `acdf report` on
 /// `nbrdf:nickel`, `nbrdf:blue-metallic-paint` and `nbrdf:gray-plastic`
-/// (the command of the README's section on this sampler): up to about 5
-/// times its default tolerance the simplifier barely moves the relative
-/// variance, while the θ_o budget moves it most, so the storage goes to
-/// θ_o breakpoints (12 to 14 kept slices of about 1 KiB each on those
-/// materials).
-pub const DEFAULT_BUDGET: f64 = 0.003;
+/// (the command of the README's section on this sampler, with
+/// `--tolerance`), among budgets of 1 to 8 times 0.001 per 0.003 of
+/// tolerance: near the storage cap, 0.004 per 0.003 gave the lowest
+/// relative variance on all three (for example gray-plastic 5.08e-2 at
+/// 18.6 KiB, against 5.37e-2 at 8 and 6.29e-2 at 1 at about the same
+/// storage). A slice on the shared grid costs two bytes per vertex, so
+/// the storage goes to about 11 to 14 kept slices and a grid of about 50
+/// marginal vertices.
+pub const DEFAULT_BUDGET: f64 = 0.004;
 
 /// The default tolerance of an outgoing sampler over its simplifier's
-/// default (see [`DEFAULT_BUDGET`]).
-pub const TOLERANCE_SCALE: f64 = 6.0;
+/// default (see [`DEFAULT_BUDGET`]); the storage cap's fill steps then
+/// lower it to where the sampler fits.
+pub const TOLERANCE_SCALE: f64 = 2.0;
 
 /// The default number of fine θ_o slices per θ_o cell of the requested
 /// resolution (32 cells: 128 fine slices).
@@ -131,17 +155,46 @@ impl OutgoingBuilder {
     /// times [`TOLERANCE_SCALE`] with the storage cap [`DEFAULT_MAX_BYTES`]),
     /// the budget in proportion, and `fine` fine slices.
     pub fn by_name(name: &str, tolerance: Option<f64>, fine: usize) -> Result<Self> {
+        Self::with_defaults(name, tolerance, fine, TOLERANCE_SCALE, DEFAULT_BUDGET)
+    }
+
+    /// [`by_name`](Self::by_name) for the anisotropic sampler, whose
+    /// slices keep their own vertices: its default tolerance is the
+    /// simplifier's times
+    /// [`ANISOTROPIC_TOLERANCE_SCALE`](anisotropic::ANISOTROPIC_TOLERANCE_SCALE),
+    /// with the budget
+    /// [`ANISOTROPIC_BUDGET`](anisotropic::ANISOTROPIC_BUDGET) there.
+    pub fn anisotropic_by_name(name: &str, tolerance: Option<f64>, fine: usize) -> Result<Self> {
+        Self::with_defaults(
+            name,
+            tolerance,
+            fine,
+            anisotropic::ANISOTROPIC_TOLERANCE_SCALE,
+            anisotropic::ANISOTROPIC_BUDGET,
+        )
+    }
+
+    /// The builder at `tolerance`, or at the simplifier's default times
+    /// `scale` (with the storage cap), the budget `budget_at_default` times
+    /// the tolerance over that default.
+    fn with_defaults(
+        name: &str,
+        tolerance: Option<f64>,
+        fine: usize,
+        scale: f64,
+        budget_at_default: f64,
+    ) -> Result<Self> {
         let simplifier = simplifier_by_name(name)?;
-        let default = simplifier.default_tolerance() * TOLERANCE_SCALE;
+        let default = simplifier.default_tolerance() * scale;
         let at_default = tolerance.is_none();
         let tolerance = tolerance.unwrap_or(default);
         // The budget follows the tolerance, so that one knob (the
         // tolerance, as `--tolerance` and `--target-efficiency` set it)
         // trades storage for variance along both axes.
         let budget = if default > 0.0 {
-            DEFAULT_BUDGET * tolerance / default
+            budget_at_default * tolerance / default
         } else {
-            DEFAULT_BUDGET
+            budget_at_default
         };
         let b = OutgoingBuilder {
             simplifier,
@@ -192,13 +245,13 @@ pub struct OutgoingSampler {
     breakpoints: Vec<f32>,
     /// The blend weights of the breakpoints' slices.
     blend: ThetaOBlend,
-    slices: Vec<PackedCdf2D>,
+    slices: SharedSlices,
     cosine_fraction: f32,
 }
 
 /// The bytes of `breakpoints` breakpoints (f32) and their slices.
-fn stored_bytes(breakpoints: usize, slices: &[PackedCdf2D]) -> usize {
-    4 * breakpoints + slices.iter().map(PackedCdf2D::storage_bytes).sum::<usize>()
+fn stored_bytes(breakpoints: usize, slices: &SharedSlices) -> usize {
+    4 * breakpoints + slices.storage_bytes()
 }
 
 /// The storage the default tolerance keeps within: 1000 times less than
@@ -212,13 +265,13 @@ pub const CAP_STEP: f64 = 1.5;
 pub(crate) const CAP_TRIES: usize = 8;
 
 /// The factor by which a capped build whose first try has room under the
-/// cap lowers its tolerance and budget, as long as the sampler still fits.
+/// cap lowers its tolerance and budget, as long as the sampler still fits;
+/// a step that overshoots the cap is followed by one try of its square
+/// root.
 ///
-/// √1.5: two steps make one [`CAP_STEP`], and a step finer than that
-/// lands closer to the cap. Chosen with [`FILL_TRIES`] by `acdf report` on
-/// `nbrdf:nickel` (README command), whose first build stores 11.0 KiB at
-/// 0.93 of the seed table's efficiency: two steps down it stores 17.0 KiB
-/// at 1.00 to 1.03 (over runs; the times vary by a few percent).
+/// √1.5: two steps make one [`CAP_STEP`]. With the square-root try, the
+/// storage lands within about 10% under the cap (`acdf report` on the
+/// three materials of the README's section on this sampler).
 pub const FILL_STEP: f64 = 1.224_744_871;
 
 /// Lowerings of the tolerance a capped build tries at most (down to
@@ -410,9 +463,9 @@ impl OutgoingSampler {
             .collect();
         // The kept breakpoints and their slices at a builder's tolerance
         // and budget.
-        let build = |b: &OutgoingBuilder| -> Result<(Vec<usize>, Vec<PackedCdf2D>)> {
+        let build = |b: &OutgoingBuilder| -> Result<(Vec<usize>, SharedSlices)> {
             let kept = choose_breakpoints(&normalised, &u, b.budget);
-            let slices = kept
+            let filled: Vec<Vec<f32>> = kept
                 .par_iter()
                 .enumerate()
                 .map(|(i, &k)| {
@@ -426,21 +479,14 @@ impl OutgoingSampler {
                         n_phi_h,
                         &mut values,
                     );
-                    let d = AdaptiveCdf2D::from_values_pinned(
-                        &values,
-                        n_phi_h,
-                        n_theta_h,
-                        &*b.simplifier,
-                        b.tolerance,
-                        1,
-                    )?;
-                    PackedCdf2D::from_adaptive(&d, &values, n_phi_h, n_theta_h)
+                    values
                 })
-                .collect::<Result<Vec<_>>>()?;
+                .collect();
+            let slices =
+                SharedSlices::build(&filled, n_phi_h, n_theta_h, &*b.simplifier, b.tolerance)?;
             Ok((kept, slices))
         };
-        let bytes =
-            |(kept, slices): &(Vec<usize>, Vec<PackedCdf2D>)| stored_bytes(kept.len(), slices);
+        let bytes = |(kept, slices): &(Vec<usize>, SharedSlices)| stored_bytes(kept.len(), slices);
         let mut builder = builder;
         let mut built = build(&builder)?;
         if let Some(cap) = builder.max_bytes {
@@ -459,16 +505,29 @@ impl OutgoingSampler {
             } else {
                 // Room under the cap: both shrink by FILL_STEP while the
                 // sampler still fits (at most FILL_TRIES times), spending
-                // the storage on variance.
+                // the storage on variance; where a step overshoots, half
+                // of it (in ratio) is tried once.
+                let finer = |b: &OutgoingBuilder, step: f64| {
+                    let mut finer = b.clone();
+                    finer.tolerance /= step;
+                    finer.budget /= step;
+                    finer
+                };
                 for _ in 0..FILL_TRIES {
-                    let mut finer = builder.clone();
-                    finer.tolerance /= FILL_STEP;
-                    finer.budget /= FILL_STEP;
-                    let candidate = build(&finer)?;
-                    if bytes(&candidate) > cap {
+                    let mut next = finer(&builder, FILL_STEP);
+                    let mut candidate = build(&next)?;
+                    let overshoot = bytes(&candidate) > cap;
+                    if overshoot {
+                        next = finer(&builder, FILL_STEP.sqrt());
+                        candidate = build(&next)?;
+                        if bytes(&candidate) > cap {
+                            break;
+                        }
+                    }
+                    (builder, built) = (next, candidate);
+                    if overshoot {
                         break;
                     }
-                    (builder, built) = (finer, candidate);
                 }
             }
         }
@@ -491,7 +550,7 @@ impl OutgoingSampler {
         n_theta_h: usize,
         n_phi_h: usize,
         breakpoints: Vec<f32>,
-        slices: Vec<PackedCdf2D>,
+        slices: SharedSlices,
     ) -> Self {
         OutgoingSampler {
             name: builder.name(),
@@ -538,8 +597,9 @@ impl OutgoingSampler {
             .collect()
     }
 
-    /// The kept slices, in the order of the breakpoints.
-    pub fn slices(&self) -> &[PackedCdf2D] {
+    /// The kept slices on their shared grid, in the order of the
+    /// breakpoints.
+    pub fn slices(&self) -> &SharedSlices {
         &self.slices
     }
 
@@ -548,21 +608,14 @@ impl OutgoingSampler {
         (self.n_theta_h, self.n_phi_h)
     }
 
-    /// (mean marginal vertices, mean vertices of the stored conditionals)
-    /// over the kept slices.
+    /// (marginal vertices, mean vertices of the stored conditionals) of the
+    /// slices' shared grid.
     pub fn mean_vertices(&self) -> (f64, f64) {
-        let n = self.slices.len().max(1) as f64;
-        let marginal = self
-            .slices
-            .iter()
-            .map(|s| s.marginal_vertex_count())
-            .sum::<usize>();
-        let (vertices, stored) = self
-            .slices
-            .iter()
-            .map(|s| s.conditional_vertices())
-            .fold((0, 0), |(a, b), (c, d)| (a + c, b + d));
-        (marginal as f64 / n, vertices as f64 / stored.max(1) as f64)
+        let (vertices, stored) = self.slices.conditional_vertices();
+        (
+            self.slices.marginal_vertex_count() as f64,
+            vertices as f64 / stored.max(1) as f64,
+        )
     }
 
     /// What the draws and densities of a valid wo share: its two slices and
@@ -591,13 +644,14 @@ impl OutgoingSampler {
     #[inline(always)]
     fn table_pdf_at(&self, o: &Outgoing, c: &Coordinates) -> f32 {
         let (k, t) = (o.k, o.t);
-        let (nx, ny) = self.cells;
         let mut p = 0.0;
-        if t < 1.0 {
-            p += (1.0 - t) * self.slices[k].pdf(c.x, c.v, nx, ny);
-        }
-        if t > 0.0 {
-            p += t * self.slices[k + 1].pdf(c.x, c.v, nx, ny);
+        if let (Some(cell), _) = self.slices.locate(c.x, c.v, self.cells, (0.0, 0.0)) {
+            if t < 1.0 {
+                p += (1.0 - t) * self.slices.density(k, &cell);
+            }
+            if t > 0.0 {
+                p += t * self.slices.density(k + 1, &cell);
+            }
         }
         let p = p / (self.map.jacobian(c.v, c.sin_h) * 4.0 * c.wo_h);
         if is_positive_finite(p) {
@@ -619,18 +673,22 @@ impl OutgoingSampler {
         } else {
             (k + 1, k, (u.x - (1.0 - t)) / t, t)
         };
-        let n = self.cells;
-        let d = self.slices[drawn].sample(clamp_unit(ux), u.y, n, CELL_MARGIN);
+        let d = self
+            .slices
+            .sample(drawn, clamp_unit(ux), u.y, self.cells, CELL_MARGIN);
         let (x, v) = d.p;
-        let mut p_xv = w_drawn * d.pdf;
-        let mut same = d.same_around;
+        let mut p_xv = w_drawn * self.slices.density(drawn, &d.cell);
         let w_other = 1.0 - w_drawn;
         if w_other > 0.0 {
-            let o = self.slices[other].locate(x, v, n, CELL_MARGIN);
-            p_xv += w_other * o.pdf;
-            same &= o.same_around;
+            // The other slice's cells are the drawn one's: no search.
+            p_xv += w_other * self.slices.density(other, &d.cell);
         }
-        TablePoint { x, v, p_xv, same }
+        TablePoint {
+            x,
+            v,
+            p_xv,
+            same: d.same_around,
+        }
     }
 
     /// A table draw for a valid wo: wi, and the table density when the

@@ -8,7 +8,7 @@ use acdf_core::{Error, Result};
 /// The largest quantised CDF value: a CDF value c is stored as
 /// round(c · 65535).
 pub(crate) const Q: u16 = u16::MAX;
-const QF: f32 = Q as f32;
+pub(super) const QF: f32 = Q as f32;
 
 /// A point of a [`PackedCdf2D`], its density, and whether the density is
 /// the same over a box around it.
@@ -220,12 +220,12 @@ pub(crate) fn count_at_or_below<P: Stored>(data: &[P], start: usize, len: usize,
 /// One curve of a slice: `len` positions from `pos` in `pos_data` and as
 /// many CDF values from `cdf` in `cdf_data`.
 #[derive(Clone, Copy)]
-struct Curve<'a, P> {
-    pos_data: &'a [P],
-    pos: usize,
-    cdf_data: &'a [u16],
-    cdf: usize,
-    len: usize,
+pub(super) struct Curve<'a, P> {
+    pub(super) pos_data: &'a [P],
+    pub(super) pos: usize,
+    pub(super) cdf_data: &'a [u16],
+    pub(super) cdf: usize,
+    pub(super) len: usize,
 }
 
 impl<P: Stored> Curve<'_, P> {
@@ -249,7 +249,7 @@ impl<P: Stored> Curve<'_, P> {
     /// density). The segment is the last vertex whose CDF is at or below u
     /// (zero-mass segments are never chosen).
     #[inline(always)]
-    fn sample(&self, n: f32, u: f32) -> (f32, usize, Segment) {
+    pub(super) fn sample(&self, n: f32, u: f32) -> (f32, usize, Segment) {
         let us = u * QF;
         let j = count_at_or_below(self.cdf_data, self.cdf + 1, self.len - 2, u16::key(us));
         let s = Segment::new(self.segment(j));
@@ -266,9 +266,9 @@ impl<P: Stored> Curve<'_, P> {
 
 /// One segment of a curve: its end positions (grid units) and CDF values.
 #[derive(Clone, Copy)]
-struct Segment {
-    p: (f32, f32),
-    c: (u16, u16),
+pub(super) struct Segment {
+    pub(super) p: (f32, f32),
+    pub(super) c: (u16, u16),
 }
 
 impl Segment {
@@ -279,7 +279,7 @@ impl Segment {
 
     /// The density over [0, 1) of a curve over `n` cells.
     #[inline(always)]
-    fn density(&self, n: f32) -> f32 {
+    pub(super) fn density(&self, n: f32) -> f32 {
         let mass = (self.c.1 - self.c.0) as f32;
         let width = self.p.1 - self.p.0;
         (mass * n) / (width * QF)
@@ -288,7 +288,7 @@ impl Segment {
     /// Whether [t - margin, t + margin] lies inside the segment (all in
     /// grid units).
     #[inline(always)]
-    fn inside(&self, t: f32, margin: f32) -> bool {
+    pub(super) fn inside(&self, t: f32, margin: f32) -> bool {
         (self.p.0 <= t - margin) & (t + margin < self.p.1)
     }
 }
@@ -554,7 +554,7 @@ impl PackedCdf2D {
     }
 }
 
-fn check_curve<P: Stored + PartialOrd>(
+pub(super) fn check_curve<P: Stored + PartialOrd>(
     what: &str,
     pos: &[P],
     cdf: &[u16],
@@ -581,7 +581,7 @@ fn check_curve<P: Stored + PartialOrd>(
 
 /// Grid indices of positions k / n (exact for the vertices a simplifier
 /// keeps of a tabulated CDF).
-fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
+pub(super) fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
     xs.iter()
         .map(|&x| {
             let t = x as f64 * n as f64;

@@ -10,12 +10,18 @@
 //! (f64), the θ_o budget (f64), the fine slice count (u32), the material
 //! name (`string`), whether it is isotropic (u8, 1), its fingerprint (u64),
 //! the half-vector cells θ_h and φ_h (2 × u32), the cosine mixing fraction
-//! (f32), the breakpoints u_o (`f32 array`), then per breakpoint its slice:
-//! arrays of a u32 count and the values: the marginal positions (u16), the
-//! marginal CDF values (u16), the conditional offsets (u16), the
-//! conditional positions (u8) and the conditional CDF values (u16).
+//! (f32), the breakpoints u_o (`f32 array`), then the slices' shared grid
+//! and per breakpoint its slice's CDF values, each an array of a u32 count
+//! and the values: the marginal positions (u16), the conditional offsets
+//! (u16), the conditional positions (u8), then per slice its marginal
+//! then conditional CDF values (u16).
+//!
+//! `write_slice` and `read_slice` hold the anisotropic sampler's
+//! slices, each with vertices of its own: the marginal positions, the
+//! marginal CDF values, the offsets, the conditional positions and the
+//! conditional CDF values.
 
-use super::{OutgoingBuilder, OutgoingSampler, PackedCdf2D};
+use super::{OutgoingBuilder, OutgoingSampler, PackedCdf2D, SharedSlices};
 use crate::simplify::simplifier_by_name;
 use acdf_core::fsio::write_atomic;
 use acdf_core::BxdfSampler;
@@ -29,11 +35,12 @@ use std::sync::Arc;
 /// The kind recorded in the file.
 pub const KIND: &str = "outgoing";
 
-/// The layout version of the body this build writes and reads: 3, whose
-/// slices blend linearly in cos θ_o. Layout 1 (blending linearly in u_o)
-/// is refused: its breakpoints were chosen for the other blend, so the
-/// sampler is rebuilt instead (2 and 4 are the anisotropic layouts).
-pub const OUTGOING_VERSION: u32 = 3;
+/// The layout version of the body this build writes and reads: 5, whose
+/// slices share one grid and blend linearly in cos θ_o. The earlier
+/// isotropic layouts are refused with the reason, and the sampler is built
+/// again: 1 blended linearly in u_o, 3 kept each slice's own vertices (2
+/// and 4 are the anisotropic layouts).
+pub const OUTGOING_VERSION: u32 = 5;
 
 pub(crate) fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
     w.length(values.len());
@@ -132,8 +139,12 @@ impl OutgoingSampler {
         w.length(self.n_phi_h);
         w.f32(self.cosine_fraction);
         w.f32_array(&self.breakpoints);
-        for s in &self.slices {
-            write_slice(&mut w, s);
+        let slices = &self.slices;
+        write_u16s(&mut w, slices.marginal_pos());
+        write_u16s(&mut w, slices.offsets());
+        write_u8s(&mut w, slices.conditional_pos());
+        for k in 0..slices.len() {
+            write_u16s(&mut w, slices.slice_cdf(k));
         }
         seal(&w.into_bytes())
     }
@@ -156,10 +167,10 @@ impl OutgoingSampler {
         }
         let version = r.u32("outgoing version")?;
         if version != OUTGOING_VERSION {
-            let why = if version == 1 {
-                " (layout 1 blends its slices linearly in u_o: build the sampler again)"
-            } else {
-                ""
+            let why = match version {
+                1 => " (layout 1 blends its slices linearly in u_o: build the sampler again)",
+                3 => " (layout 3 keeps each slice's own vertices: build the sampler again)",
+                _ => "",
             };
             return Err(invalid(
                 "outgoing version",
@@ -209,11 +220,25 @@ impl OutgoingSampler {
         {
             return Err(invalid("breakpoints", "not increasing from 0 to 1".into()));
         }
-        let mut slices = Vec::with_capacity(n.min(r.remaining()));
+        let marginal_pos = read_u16s(&mut r, "marginal positions")?;
+        let offsets = read_u16s(&mut r, "offsets")?;
+        let conditional_pos = read_u8s(&mut r, "conditional positions")?;
+        let mut cdfs = Vec::with_capacity(n.min(r.remaining()));
         for _ in 0..n {
-            slices.push(read_slice(&mut r, n_phi_h, n_theta_h)?);
+            cdfs.push(read_u16s(&mut r, "slice CDF")?);
         }
         r.finish()?;
+        let stride = marginal_pos.len() + conditional_pos.len();
+        if let Some(c) = cdfs.iter().find(|c| c.len() != stride) {
+            return Err(invalid(
+                "slice CDF",
+                format!("{} values on a grid of {stride} vertices", c.len()),
+            ));
+        }
+        let slices = SharedSlices::from_arrays(&marginal_pos, &offsets, conditional_pos, &cdfs);
+        slices
+            .validate(n_phi_h, n_theta_h)
+            .map_err(|reason| invalid("slices", reason))?;
         let brdf = Arc::new(StoredMaterial {
             name: material,
             isotropic: true,

@@ -45,8 +45,8 @@ fn pdf_is_continuous_across_a_breakpoint() {
     assert!(compared > 20);
     // The neighbouring slices differ: the continuity is the blend's.
     let (a, b) = (
-        &s.slices()[angles.len() / 2 - 1],
-        &s.slices()[angles.len() / 2],
+        s.slices().slice_cdf(angles.len() / 2 - 1),
+        s.slices().slice_cdf(angles.len() / 2),
     );
     assert_ne!(a, b);
 }
@@ -61,15 +61,11 @@ fn nearest_slice_mutant_jumps() {
     let u = &s.breakpoints;
     let k = angles.len() / 2;
     let mid = 0.5 * (u[k] + u[k + 1]);
-    let nx = s.n_phi_h as f32;
-    let ny = s.n_theta_h as f32;
+    let n = (s.n_phi_h as f32, s.n_theta_h as f32);
     let mut jumps = 0;
     for i in 0..64 {
         let (x, y) = ((i % 8) as f32 / 8.0 + 0.01, (i / 8) as f32 / 8.0 + 0.01);
-        let (lo, hi) = (
-            s.slices[k].pdf(x, y, nx, ny),
-            s.slices[k + 1].pdf(x, y, nx, ny),
-        );
+        let (lo, hi) = (s.slices.pdf(k, x, y, n), s.slices.pdf(k + 1, x, y, n));
         if (lo - hi).abs() > 0.02 * lo.max(hi) {
             jumps += 1;
         }
@@ -350,14 +346,156 @@ fn room_under_the_cap_is_spent_on_variance() {
     }
 }
 
-/// A file of layout 1 (blends linear in u_o) is refused with a typed error
-/// that says to build the sampler again.
+/// Files of the earlier isotropic layouts are refused with a typed error
+/// that gives the reason and says to build the sampler again: layout 1
+/// (blends linear in u_o) and layout 3 (each slice with its own vertices).
 #[test]
-fn layout_one_is_refused() {
+fn earlier_layouts_are_refused() {
     let s = small(nickel());
-    let e = OutgoingSampler::from_bytes(&s.to_bytes_as(1))
-        .err()
-        .expect("layout 1 is refused");
-    assert!(e.to_string().contains("build the sampler again"), "{e}");
+    for (layout, reason) in [(1, "linearly in u_o"), (3, "own vertices")] {
+        let e = OutgoingSampler::from_bytes(&s.to_bytes_as(layout))
+            .err()
+            .expect("an earlier layout is refused");
+        assert!(e.to_string().contains(reason), "{e}");
+        assert!(e.to_string().contains("build the sampler again"), "{e}");
+    }
     assert!(OutgoingSampler::from_bytes(&s.to_bytes_as(persist::OUTGOING_VERSION)).is_ok());
+}
+
+/// The density of the other slice at a draw is read at the drawn cell:
+/// it equals, bit for bit, that slice's density found by searching the
+/// point, for draws from every slice (the blend's shortcut is exact).
+#[test]
+fn the_other_slice_is_read_at_the_drawn_cell() {
+    let s = small(acdf_materials::builtin("gray-plastic").unwrap());
+    let g = s.slices();
+    assert!(g.len() >= 3);
+    let n = s.cells;
+    let mut compared = 0;
+    for drawn in 0..g.len() {
+        for k in 0..200 {
+            let u = ((k as f32 + 0.5) / 200.0, (k as f32 * 0.618_034).fract());
+            let d = g.sample(drawn, u.0, u.1, n, (0.0, 0.0));
+            for other in 0..g.len() {
+                let (cell, _) = g.locate(d.p.0, d.p.1, n, (0.0, 0.0));
+                let cell = cell.expect("a drawn point lies in a cell with mass");
+                let read = g.density(other, &d.cell);
+                assert_eq!(read.to_bits(), g.density(other, &cell).to_bits());
+                assert_eq!(read.to_bits(), g.pdf(other, d.p.0, d.p.1, n).to_bits());
+                compared += 1;
+            }
+            assert!(g.density(drawn, &d.cell) > 0.0);
+        }
+    }
+    assert!(compared > 600);
+}
+
+/// Tables without mass: a zero slice among others takes the mean of the
+/// others' normalised tables, and all-zero tables give one uniform cell;
+/// the result is valid and its densities integrate to one.
+#[test]
+fn slices_without_mass_stay_valid() {
+    let (nx, ny) = (8, 16);
+    let ramp: Vec<f32> = (0..nx * ny).map(|i| (i % 7) as f32).collect();
+    let spike: Vec<f32> = (0..nx * ny).map(|i| (i == 37) as u8 as f32 * 5.0).collect();
+    let zero = vec![0.0f32; nx * ny];
+    let simplifier = simplifier_by_name("chi2").unwrap();
+    let cells = (nx as f32, ny as f32);
+    let integral = |g: &SharedSlices, s: usize| -> f64 {
+        let mut sum = 0.0f64;
+        for i in 0..4 * ny {
+            for j in 0..4 * nx {
+                let (x, y) = (
+                    (j as f32 + 0.5) / (4 * nx) as f32,
+                    (i as f32 + 0.5) / (4 * ny) as f32,
+                );
+                sum += g.pdf(s, x, y, cells) as f64;
+            }
+        }
+        sum / (16 * nx * ny) as f64
+    };
+    let g = SharedSlices::build(
+        &[ramp.clone(), zero.clone(), spike.clone()],
+        nx,
+        ny,
+        &*simplifier,
+        1e-3,
+    )
+    .unwrap();
+    g.validate(nx, ny).unwrap();
+    for s in 0..3 {
+        assert!(
+            (integral(&g, s) - 1.0).abs() < 1e-3,
+            "slice {s}: {}",
+            integral(&g, s)
+        );
+    }
+    // The zero slice has mass both where the ramp and where the spike has.
+    let spike_at = ((37 % nx) as f32 + 0.5) / nx as f32;
+    let spike_row = ((37 / nx) as f32 + 0.5) / ny as f32;
+    assert!(g.pdf(1, spike_at, spike_row, cells) > 0.0);
+    assert!(g.pdf(1, 0.3 / nx as f32, 0.5, cells) > 0.0);
+    let none = SharedSlices::build(&[zero.clone(), zero], nx, ny, &*simplifier, 1e-3).unwrap();
+    none.validate(nx, ny).unwrap();
+    assert_eq!(none.marginal_vertex_count(), 2);
+    assert!((none.pdf(0, 0.3, 0.7, cells) - 1.0).abs() < 1e-4);
+}
+
+/// The number of CDF values of the last slice of a file.
+fn last_slice_values(bytes: &[u8]) -> usize {
+    let s = OutgoingSampler::from_bytes(bytes).unwrap();
+    s.slices().slice_cdf(s.slices().len() - 1).len()
+}
+
+/// An edit of a sampler's offsets and slice CDF values.
+type Edit = dyn Fn(&mut Vec<u16>, &mut Vec<Vec<u16>>);
+
+/// A well-sealed file whose slices lie is refused with a typed error
+/// naming the field: a slice one CDF value short, a slice whose marginal
+/// CDF runs backwards, offsets that end before the conditionals do.
+#[test]
+fn hostile_files_are_typed_errors() {
+    let field_of = |bytes: Vec<u8>| match OutgoingSampler::from_bytes(&bytes) {
+        Err(acdf_tabulated::persist::PersistError::Invalid { field, .. }) => field,
+        Err(other) => panic!("unexpected {other}"),
+        Ok(_) => panic!("a lying file loaded"),
+    };
+    let rebuilt = |edit: &Edit| {
+        let mut s = small(nickel());
+        let g = s.slices.clone();
+        let mut offsets = g.offsets().to_vec();
+        let mut cdfs: Vec<Vec<u16>> = (0..g.len()).map(|k| g.slice_cdf(k).to_vec()).collect();
+        edit(&mut offsets, &mut cdfs);
+        s.slices = SharedSlices::from_arrays(
+            g.marginal_pos(),
+            &offsets,
+            g.conditional_pos().to_vec(),
+            &cdfs,
+        );
+        s.to_bytes()
+    };
+    // The last slice one value short: its count and its bytes cut, and
+    // the file sealed again.
+    let good = rebuilt(&|_, _| {});
+    let mut body = acdf_tabulated::persist::open(&good).unwrap().to_vec();
+    let last = last_slice_values(&good);
+    let at = body.len() - 2 * last - 4;
+    body[at..at + 4].copy_from_slice(&(last as u32 - 1).to_le_bytes());
+    body.truncate(body.len() - 2);
+    assert_eq!(field_of(acdf_tabulated::persist::seal(&body)), "slice CDF");
+    assert_eq!(
+        field_of(rebuilt(&|_, c| {
+            let last = c[1].len() - 1;
+            c[1].swap(1, last);
+        })),
+        "slices"
+    );
+    assert_eq!(
+        field_of(rebuilt(&|o, _| {
+            let last = o.len() - 1;
+            o[last] -= 1;
+        })),
+        "slices"
+    );
+    assert!(OutgoingSampler::from_bytes(&rebuilt(&|_, _| {})).is_ok());
 }

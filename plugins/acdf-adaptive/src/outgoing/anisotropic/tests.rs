@@ -30,7 +30,7 @@ fn nickel() -> Arc<dyn Brdf> {
 
 /// A small sampler: 16 θ_o × 16 φ_o nodes, 64 × 16 half-vector cells.
 fn small(brdf: Arc<dyn Brdf>) -> AnisotropicOutgoingSampler {
-    let builder = OutgoingBuilder::by_name("chi2", None, 16).unwrap();
+    let builder = OutgoingBuilder::anisotropic_by_name("chi2", None, 16).unwrap();
     AnisotropicOutgoingSampler::new(brdf, "8x8x64x16".parse().unwrap(), builder, 16).unwrap()
 }
 
@@ -314,7 +314,7 @@ fn file_round_trip() {
     let iso = crate::OutgoingSampler::new(
         nickel(),
         "8x1x64x16".parse().unwrap(),
-        OutgoingBuilder::by_name("chi2", None, 16).unwrap(),
+        OutgoingBuilder::anisotropic_by_name("chi2", None, 16).unwrap(),
     )
     .unwrap()
     .to_bytes();
@@ -392,7 +392,7 @@ fn hostile_files_are_typed_errors() {
 /// Bad parameters are typed errors.
 #[test]
 fn bad_parameters_are_refused() {
-    let builder = OutgoingBuilder::by_name("chi2", None, 16).unwrap();
+    let builder = OutgoingBuilder::anisotropic_by_name("chi2", None, 16).unwrap();
     let r = AnisotropicOutgoingSampler::new(
         Arc::new(Brushed),
         "8x8x64x16".parse().unwrap(),
