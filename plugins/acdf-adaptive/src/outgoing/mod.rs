@@ -14,9 +14,11 @@
 //! relative variance the blend adds where the BRDF equals its table. Each
 //! kept slice then gets the support pass of [`fill_support`] for every
 //! outgoing direction between its neighbouring breakpoints. The simplifier
-//! chooses one grid for all of them on the mean of their normalised
-//! tables (an [`AdaptiveCdf2D`](crate::AdaptiveCdf2D), first θ_h row pinned, as the adaptive
-//! sampler does), and every slice keeps its own masses on that grid as
+//! chooses one grid for all of them on a table made of their normalised
+//! tables (half their mean, half the sum of their square roots; an
+//! [`AdaptiveCdf2D`](crate::AdaptiveCdf2D), first θ_h row pinned, as the
+//! adaptive sampler does), and every slice keeps its own masses on that
+//! grid as
 //! 16-bit CDF values ([`SharedSlices`]); the grid is stored once, as 16-bit
 //! θ_h and 8-bit φ_h grid indices.
 //!
@@ -49,30 +51,43 @@
 //! drawn slice's CDF values once per axis and reads the other slice in the
 //! same cell, and a density searches the positions once per axis and reads
 //! both: two searches, and a slice costs two bytes per vertex instead of
-//! five, so the storage cap holds more slices and vertices. The price is
-//! a grid that fits the mean lobe rather than each one. Measured on built-in
-//! nickel (instructions per call, callgrind on the `hotpath` example of
-//! the `acdf` crate) and at the storage cap (`acdf report`, the command of
-//! the README's section on this sampler), slices with their own vertices
-//! (stored as the anisotropic sampler stores them, each tuned as well as
-//! its form allowed) against the shared grid:
+//! three (conditional) to six (marginal), so the storage cap holds more
+//! slices and vertices. The price is a grid that fits no slice as closely
+//! as its own vertices would. Measured on built-in nickel (instructions per call, callgrind on the
+//! `hotpath` example of the `acdf` crate) and at the storage cap (`acdf
+//! report`, the command of the README's section on this sampler; storage,
+//! relative variance, firefly), slices with their own vertices (stored as
+//! the anisotropic sampler stores them, at the defaults that suited that
+//! form: tolerance 6 times the simplifier's, budget 0.003) against the
+//! shared grid:
 //!
 //! | | own vertices | shared grid |
 //! |:--|--:|--:|
-//! | instructions: `sample`, `pdf` | 845, 734 | 701, 599 |
-//! | instructions: `sample_batch`, `pdf_batch` | 568, 492 | 404, 305 |
-//! | nbrdf:nickel: storage, relative variance | 17.0 KiB, 3.355e-2 | 16.6 KiB, 3.639e-2 |
-//! | nbrdf:blue-metallic-paint | 13.0 KiB, 4.071e-2 | 16.3 KiB, 4.180e-2 |
-//! | nbrdf:gray-plastic | 15.6 KiB, 4.708e-2 | 15.3 KiB, 5.542e-2 |
+//! | instructions: `sample`, `pdf` | 845, 734 | 703, 599 |
+//! | instructions: `sample_batch`, `pdf_batch` | 568, 492 | 406, 306 |
+//! | nbrdf:nickel | 17.0 KiB, 3.355e-2, 9 | 17.1 KiB, 3.489e-2, 52 |
+//! | nbrdf:blue-metallic-paint | 13.0 KiB, 4.071e-2, 23 | 14.7 KiB, 4.068e-2, 23 |
+//! | nbrdf:gray-plastic | 15.6 KiB, 4.708e-2, 9 | 15.7 KiB, 5.258e-2, 12 |
+//! | `acdf survey`: median rel. eff., worst, materials ≥ 0.95 | 2.46, 0.76, 97 | 2.98, 0.79, 96 |
 //!
-//! Over the 100 MERL materials (`acdf survey`) the shared grid keeps the
-//! seed table's efficiency on more of them (98 against 97) at a higher
-//! median (2.77 against 2.46), as time is what decides on the mirror-like
-//! metals. Among grids chosen on other summaries of the slices, the mean
-//! gave the lowest variance: on the element-wise maximum of the normalised
-//! tables, gray-plastic had 1.771e-1 at 14.2 KiB, and on their root mean
-//! square 6.855e-2 at 16.5 KiB, against 6.285e-2 at 15.7 KiB on the mean
-//! (at the same budget and tolerance).
+//! The grid's table is half the mean of the kept slices' normalised
+//! tables p_s and half Σ_s √p_s, each scaled to unit mass. Either alone
+//! fails some materials, as the same command shows (relative variance,
+//! firefly; on the three materials above, then with `--quadrature
+//! 512x256`, the survey's, on the mirror-like tungsten-carbide, chrome
+//! and ss440):
+//!
+//! | grid table | nickel | blue-metallic-paint | gray-plastic | tungsten-carbide, chrome, ss440 |
+//! |:--|:--|:--|:--|:--|
+//! | mean | 3.639e-2, 66 | 4.180e-2, 348 | 5.542e-2, 106 | 1.934e-2, 1.702e-2, 2.075e-2 |
+//! | Σ √p_s | 3.511e-2, 45 | 4.040e-2, 21 | 5.197e-2, 10 | 2.874e-2, 2.323e-2, 2.724e-2 |
+//! | half each | 3.489e-2, 52 | 4.068e-2, 23 | 5.258e-2, 12 | 1.924e-2, 1.765e-2, 2.075e-2 |
+//!
+//! On the mean, a slice whose lobe is narrower than the others' weighs
+//! little, and the simplifier merges the cells of its peak and tails,
+//! hence the fireflies. The root lifts every slice's low values towards
+//! its peak, so the grid keeps vertices wherever any slice changes, but
+//! spends them on tails where a mirror-like lobe needs them on its peak.
 //!
 //! **Storage** counts every byte kept: the breakpoints (f32), the grid and
 //! each slice's CDF values.
@@ -110,14 +125,14 @@ use std::sync::Arc;
 ///
 /// With [`TOLERANCE_SCALE`] it was chosen by `acdf report` on
 /// `nbrdf:nickel`, `nbrdf:blue-metallic-paint` and `nbrdf:gray-plastic`
-/// (the command of the README's section on this sampler, with
-/// `--tolerance`), among budgets of 1 to 8 times 0.001 per 0.003 of
-/// tolerance: near the storage cap, 0.004 per 0.003 gave the lowest
-/// relative variance on all three (for example gray-plastic 5.08e-2 at
-/// 18.6 KiB, against 5.37e-2 at 8 and 6.29e-2 at 1 at about the same
-/// storage). A slice on the shared grid costs two bytes per vertex, so
-/// the storage goes to about 11 to 14 kept slices and a grid of about 50
-/// marginal vertices.
+/// (the command of the README's section on this sampler). At the storage
+/// cap, the budgets 0.002, 0.004 and 0.008 give (relative variance,
+/// firefly): nickel 3.492e-2, 71; 3.489e-2, 52; 3.481e-2, 42;
+/// blue-metallic-paint 3.935e-2, 20; 4.068e-2, 23; 4.355e-2, 13;
+/// gray-plastic 5.216e-2, 24; 5.258e-2, 12; 5.357e-2, 188. 0.002 and
+/// 0.004 are within 3% of each other; 0.004 keeps fewer slices (12 to 14
+/// against 14 to 17), so it builds faster and has the lower fireflies on
+/// two of the three.
 pub const DEFAULT_BUDGET: f64 = 0.004;
 
 /// The default tolerance of an outgoing sampler over its simplifier's

@@ -10,11 +10,16 @@
 //! there. With vertices of their own, each slice needs its own two
 //! searches.
 //!
-//! The grid is the one a simplifier keeps on the mean of the slices'
-//! normalised tables (`OutgoingSampler::new`): wherever any slice holds
-//! mass, so does the mean, so every cell with mass lies in a segment of
-//! the grid with a conditional, and each slice's quantised masses keep
-//! every positive segment positive ([`quantise`]).
+//! The grid is the one a simplifier keeps on the grid table: half the
+//! mean of the slices' normalised tables p_s and half the sum of their
+//! square roots Σ_s √p_s, each scaled to unit mass. The mean puts vertices
+//! where the mass is, which a narrow specular peak needs; the root evens
+//! out each slice's dynamic range, so that the grid also follows every
+//! slice's tails (measured in the module documentation of `outgoing`).
+//! Wherever any slice holds mass, so does the grid table, so every cell
+//! with mass lies in a segment of the grid with a conditional, and each
+//! slice's quantised masses keep every positive segment positive
+//! ([`quantise`]).
 
 use super::packed::{check_curve, count_at_or_below, grid_indices, quantise, Curve, Stored, Q};
 use crate::simplify::Simplifier;
@@ -64,10 +69,11 @@ pub struct SharedSlices {
 impl SharedSlices {
     /// The slices of the tables `tables` (row-major, `n_y` rows of `n_x`,
     /// not normalised) on the grid that `simplifier` at `tolerance` keeps
-    /// on the mean of their normalised tables (its first θ_h row pinned,
-    /// as every BRDF table of this crate has it). A slice without any mass
-    /// takes the mean's masses. Errors when the vertices are too many for
-    /// the 16-bit offsets, or the cells for the 8-bit φ_h positions.
+    /// on their grid table (module documentation; its first θ_h row
+    /// pinned, as every BRDF table of this crate has it). A slice without
+    /// any mass takes the grid table's masses. Errors when the vertices
+    /// are too many for the 16-bit offsets, or the cells for the 8-bit φ_h
+    /// positions.
     pub fn build(
         tables: &[Vec<f32>],
         n_x: usize,
@@ -94,23 +100,39 @@ impl SharedSlices {
                 .collect()
         };
         let totals: Vec<f64> = tables.iter().map(|t| row_sums(t).iter().sum()).collect();
-        let mut mean = vec![0.0f64; n_x * n_y];
+        let (mut mean, mut roots) = (vec![0.0f64; n_x * n_y], vec![0.0f64; n_x * n_y]);
         for (t, &total) in tables.iter().zip(&totals) {
             if total > 0.0 {
-                for (m, &v) in mean.iter_mut().zip(t.iter()) {
-                    *m += v as f64 / total;
+                for ((m, r), &v) in mean.iter_mut().zip(roots.iter_mut()).zip(t.iter()) {
+                    let p = v as f64 / total;
+                    *m += p;
+                    *r += p.sqrt();
                 }
             }
         }
+        let (mean_total, root_total) = (mean.iter().sum::<f64>(), roots.iter().sum::<f64>());
+        let grid_table: Vec<f64> = if mean_total > 0.0 {
+            mean.iter()
+                .zip(&roots)
+                .map(|(&m, &r)| 0.5 * (m / mean_total + r / root_total))
+                .collect()
+        } else {
+            mean
+        };
         // Which rows hold mass is decided in f64, where no slice's mass
         // underflows.
-        let mean_rows: Vec<f64> = mean.chunks_exact(n_x).map(|r| r.iter().sum()).collect();
-        let positive = |a: u16, b: u16| mean_rows[a as usize..b as usize].iter().sum::<f64>() > 0.0;
-        let mean: Vec<f32> = mean.iter().map(|&v| v as f32).collect();
+        let grid_rows: Vec<f64> = grid_table
+            .chunks_exact(n_x)
+            .map(|r| r.iter().sum())
+            .collect();
+        let positive = |a: u16, b: u16| grid_rows[a as usize..b as usize].iter().sum::<f64>() > 0.0;
+        let grid_table: Vec<f32> = grid_table.iter().map(|&v| v as f32).collect();
         // The shared positions; without any mass, one uniform cell.
-        let any_mass = mean.iter().any(|&v| v > 0.0);
+        let any_mass = grid_table.iter().any(|&v| v > 0.0);
         let grid = any_mass
-            .then(|| AdaptiveCdf2D::from_values_pinned(&mean, n_x, n_y, simplifier, tolerance, 1))
+            .then(|| {
+                AdaptiveCdf2D::from_values_pinned(&grid_table, n_x, n_y, simplifier, tolerance, 1)
+            })
             .transpose()?;
         let marginal_pos = match &grid {
             Some(g) => grid_indices(&g.marginal[..g.marginal_vertex_count()], n_y)?,
@@ -140,7 +162,7 @@ impl SharedSlices {
         let stride = m + c;
         let mut cdf = Vec::with_capacity(stride * tables.len());
         for (t, &total) in tables.iter().zip(&totals) {
-            let table: &[f32] = if total > 0.0 { t } else { &mean };
+            let table: &[f32] = if total > 0.0 { t } else { &grid_table };
             let rows = row_sums(table);
             let segment_mass: Vec<f64> = marginal_pos
                 .windows(2)

@@ -390,8 +390,9 @@ fn the_other_slice_is_read_at_the_drawn_cell() {
     assert!(compared > 600);
 }
 
-/// Tables without mass: a zero slice among others takes the mean of the
-/// others' normalised tables, and all-zero tables give one uniform cell;
+/// Tables without mass: a zero slice among others takes the masses of the
+/// grid table (made of the others' normalised tables), and all-zero
+/// tables give one uniform cell;
 /// the result is valid and its densities integrate to one.
 #[test]
 fn slices_without_mass_stay_valid() {
