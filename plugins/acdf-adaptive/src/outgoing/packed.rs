@@ -350,16 +350,7 @@ impl PackedCdf2D {
                 } else {
                     vec![0, n_x as u16]
                 };
-                let mut columns = vec![0.0f64; n_x];
-                for row in values[w[0] as usize * n_x..w[1] as usize * n_x].chunks_exact(n_x) {
-                    for (c, &v) in columns.iter_mut().zip(row) {
-                        *c += v as f64;
-                    }
-                }
-                let masses: Vec<f64> = pos
-                    .windows(2)
-                    .map(|p| columns[p[0] as usize..p[1] as usize].iter().sum())
-                    .collect();
+                let masses = conditional_masses(values, n_x, (w[0], w[1]), &pos);
                 conditional_cdf.extend(quantise(&masses));
                 conditional_pos.extend(pos.iter().map(|&p| p as u8));
             }
@@ -523,21 +514,13 @@ impl PackedCdf2D {
         check_curve("marginal", marginal_pos, marginal_cdf, n_y)?;
         let m = marginal_pos.len();
         let offsets = self.offsets();
-        if offsets.len() != m || offsets[0] != 0 {
-            return Err(format!(
-                "{} offsets for {m} marginal vertices",
-                offsets.len()
-            ));
-        }
-        if offsets.windows(2).any(|w| w[1] < w[0]) {
-            return Err("offsets decrease".into());
-        }
-        let end = offsets[m - 1] as usize;
+        check_offsets(offsets, m, self.conditional_pos.len())?;
         let conditional_cdf = self.conditional_cdf();
-        if end != self.conditional_pos.len() || end != conditional_cdf.len() {
+        if conditional_cdf.len() != self.conditional_pos.len() {
             return Err(format!(
-                "offsets end at {end}, the conditionals hold {}",
-                self.conditional_pos.len()
+                "offsets end at {}, the conditionals hold {}",
+                self.conditional_pos.len(),
+                conditional_cdf.len()
             ));
         }
         for j in 0..m - 1 {
@@ -552,6 +535,52 @@ impl PackedCdf2D {
         }
         Ok(())
     }
+}
+
+/// The masses of the table `values` (rows of `n_x`) in rows `rows.0` to
+/// `rows.1` (a marginal segment) between consecutive conditional
+/// positions `pos` (grid indices along x), summed in f64.
+pub(super) fn conditional_masses(
+    values: &[f32],
+    n_x: usize,
+    rows: (u16, u16),
+    pos: &[u16],
+) -> Vec<f64> {
+    let mut columns = vec![0.0f64; n_x];
+    for row in values[rows.0 as usize * n_x..rows.1 as usize * n_x].chunks_exact(n_x) {
+        for (c, &v) in columns.iter_mut().zip(row) {
+            *c += v as f64;
+        }
+    }
+    pos.windows(2)
+        .map(|p| columns[p[0] as usize..p[1] as usize].iter().sum())
+        .collect()
+}
+
+/// Check the offsets of `m` marginal vertices into `conditionals`
+/// conditional vertices: one per vertex, from 0, never decreasing, and
+/// ending where the conditionals end.
+pub(super) fn check_offsets(
+    offsets: &[u16],
+    m: usize,
+    conditionals: usize,
+) -> std::result::Result<(), String> {
+    if m < 2 || offsets.len() != m || offsets[0] != 0 {
+        return Err(format!(
+            "{} offsets for {m} marginal vertices",
+            offsets.len()
+        ));
+    }
+    if offsets.windows(2).any(|w| w[1] < w[0]) {
+        return Err("offsets decrease".into());
+    }
+    let end = offsets[m - 1] as usize;
+    if end != conditionals {
+        return Err(format!(
+            "offsets end at {end}, the conditionals hold {conditionals}"
+        ));
+    }
+    Ok(())
 }
 
 pub(super) fn check_curve<P: Stored + PartialOrd>(

@@ -21,7 +21,10 @@
 //! slice's quantised masses keep every positive segment positive
 //! ([`quantise`]).
 
-use super::packed::{check_curve, count_at_or_below, grid_indices, quantise, Curve, Stored, Q};
+use super::packed::{
+    check_curve, check_offsets, conditional_masses, count_at_or_below, grid_indices, quantise,
+    Curve, Segment, Stored, Q, QF,
+};
 use crate::simplify::Simplifier;
 use crate::AdaptiveCdf2D;
 use acdf_core::{Error, Result};
@@ -93,13 +96,14 @@ impl SharedSlices {
             name: "outgoing slices",
             reason: format!("{what} do not fit the stored indices"),
         };
-        // Row sums and normalised copies of every table.
         let row_sums = |t: &[f32]| -> Vec<f64> {
             t.chunks_exact(n_x)
                 .map(|r| r.iter().map(|&v| v as f64).sum())
                 .collect()
         };
-        let totals: Vec<f64> = tables.iter().map(|t| row_sums(t).iter().sum()).collect();
+        // Every table's row sums, once, and its total.
+        let rows: Vec<Vec<f64>> = tables.iter().map(|t| row_sums(t)).collect();
+        let totals: Vec<f64> = rows.iter().map(|r| r.iter().sum()).collect();
         let (mut mean, mut roots) = (vec![0.0f64; n_x * n_y], vec![0.0f64; n_x * n_y]);
         for (t, &total) in tables.iter().zip(&totals) {
             if total > 0.0 {
@@ -161,9 +165,13 @@ impl SharedSlices {
         let c = conditional_pos.len();
         let stride = m + c;
         let mut cdf = Vec::with_capacity(stride * tables.len());
-        for (t, &total) in tables.iter().zip(&totals) {
-            let table: &[f32] = if total > 0.0 { t } else { &grid_table };
-            let rows = row_sums(table);
+        let grid_table_rows = row_sums(&grid_table);
+        for ((t, t_rows), &total) in tables.iter().zip(&rows).zip(&totals) {
+            let (table, rows): (&[f32], &[f64]) = if total > 0.0 {
+                (t, t_rows)
+            } else {
+                (&grid_table, &grid_table_rows)
+            };
             let segment_mass: Vec<f64> = marginal_pos
                 .windows(2)
                 .map(|w| rows[w[0] as usize..w[1] as usize].iter().sum())
@@ -179,17 +187,8 @@ impl SharedSlices {
                 if a == b {
                     continue;
                 }
-                let pos = &conditional_pos[a..b];
-                let mut columns = vec![0.0f64; n_x];
-                for row in table[w[0] as usize * n_x..w[1] as usize * n_x].chunks_exact(n_x) {
-                    for (c, &v) in columns.iter_mut().zip(row) {
-                        *c += v as f64;
-                    }
-                }
-                let mut masses: Vec<f64> = pos
-                    .windows(2)
-                    .map(|p| columns[p[0] as usize..p[1] as usize].iter().sum())
-                    .collect();
+                let pos: Vec<u16> = conditional_pos[a..b].iter().map(|&p| p as u16).collect();
+                let mut masses = conditional_masses(table, n_x, (w[0], w[1]), &pos);
                 if !(masses.iter().sum::<f64>() > 0.0) {
                     // This slice has no mass in the segment, so the
                     // conditional is never drawn from and its density is
@@ -292,7 +291,7 @@ impl SharedSlices {
         GridCell {
             j,
             at,
-            scale: (n.0 * n.1) / (width * (Q as f32 * Q as f32)),
+            scale: (n.0 * n.1) / (width * (QF * QF)),
         }
     }
 
@@ -341,19 +340,25 @@ impl SharedSlices {
         let m = self.m;
         let ty = y * n_y;
         let j = count_at_or_below(&self.grid, 1, m - 2, u16::key(ty));
-        let (y0, y1) = (self.grid[j] as f32, self.grid[j + 1] as f32);
-        let same_y = (y0 <= ty - margin.1 * n_y) & (ty + margin.1 * n_y < y1);
+        let sy = Segment {
+            p: (self.grid[j] as f32, self.grid[j + 1] as f32),
+            c: (0, 0),
+        };
+        let same_y = sy.inside(ty, margin.1 * n_y);
         let (a, b) = self.conditional_range(j);
         if a == b {
             return (None, same_y);
         }
         let tx = x * n_x;
         let i = count_at_or_below(&self.conditional_pos, a + 1, b - a - 2, u8::key(tx));
-        let (x0, x1) = (
-            self.conditional_pos[a + i] as f32,
-            self.conditional_pos[a + i + 1] as f32,
-        );
-        let same_x = (x0 <= tx - margin.0 * n_x) & (tx + margin.0 * n_x < x1);
+        let sx = Segment {
+            p: (
+                self.conditional_pos[a + i] as f32,
+                self.conditional_pos[a + i + 1] as f32,
+            ),
+            c: (0, 0),
+        };
+        let same_x = sx.inside(tx, margin.0 * n_x);
         (Some(self.cell(j, a + i, n)), same_y & same_x)
     }
 
@@ -400,22 +405,8 @@ impl SharedSlices {
     pub fn validate(&self, n_x: usize, n_y: usize) -> std::result::Result<(), String> {
         let m = self.m;
         let offsets = self.offsets();
-        if m < 2 || offsets.len() != m || offsets[0] != 0 {
-            return Err(format!(
-                "{} offsets for {m} marginal vertices",
-                offsets.len()
-            ));
-        }
-        if offsets.windows(2).any(|w| w[1] < w[0]) {
-            return Err("offsets decrease".into());
-        }
         let c = self.conditional_pos.len();
-        if offsets[m - 1] as usize != c {
-            return Err(format!(
-                "offsets end at {}, the conditionals hold {c}",
-                offsets[m - 1]
-            ));
-        }
+        check_offsets(offsets, m, c)?;
         if self.count == 0 || self.stride != m + c || self.cdf.len() != self.count * self.stride {
             return Err(format!(
                 "{} CDF values for {} slices of {} vertices",
