@@ -17,10 +17,13 @@
 //! never written with it.
 //!
 //! [`lanes`] (x86-64) searches for many draws at once in AVX2 lanes, for the
-//! batch paths.
+//! batch paths; [`narrow`] does the same over lists of 8- and 16-bit
+//! entries.
 
 #[cfg(target_arch = "x86_64")]
 pub mod lanes;
+#[cfg(target_arch = "x86_64")]
+pub mod narrow;
 
 /// The number of entries compared at once; a conditional over 32 φ_h
 /// columns has at most 33 vertices, whose inner 31 fit.

@@ -4,8 +4,12 @@
 //!
 //! A draw is two table searches (the drawn slice, then the other slice's
 //! density at the point), then about a hundred operations of geometry
-//! (two sine/cosine pairs, a rotation, a reflection, a Jacobian). The
-//! searches run one lane at a time; the sines and cosines of the chunk's
+//! (two sine/cosine pairs, a rotation, a reflection, a Jacobian). In the
+//! AVX2 build, for a sampler on one shared grid, the searches run 8 lanes
+//! at a time (`shared/lanes.rs`: binary lifting over the grid's narrow
+//! indices, each step one gather per lane group); otherwise, and for the
+//! few lanes a stage cannot finish (a draw landing on a vertex), they run
+//! one lane at a time. The sines and cosines of the chunk's
 //! angles are computed many at a time (`sin_cos_turns_each`, which reads
 //! its table from registers), and the rest of the geometry runs as one
 //! loop over the chunk's lanes ([`draw_at`], [`coordinates`], free of
@@ -19,13 +23,28 @@
 // number; that is the layout the vectoriser wants, not an iterator chain.
 #![allow(clippy::needless_range_loop)]
 
-use super::{coordinates, draw_at, Coordinates, Outgoing, OutgoingSampler, Route, TablePoint};
+use super::{
+    coordinates, draw_at, is_positive_finite, pick_slice, Coordinates, Outgoing, OutgoingSampler,
+    Route, TablePoint, CELL_MARGIN,
+};
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{is_valid_outgoing, BxdfSample, Vec2, Vec3};
 
 /// Draws (or densities) per chunk: enough to amortise the stages, small
-/// enough for the stack.
+/// enough for the stack; a whole number of lane stages.
 const CHUNK: usize = 64;
+
+/// The AVX2 token where the batch function runs in AVX2 code, so that the
+/// chunk's searches run in lanes (`shared/lanes.rs`); `None` for the
+/// portable path, which searches one lane at a time. (Elsewhere than on
+/// x86-64, a type with no token, so always `None`.)
+#[cfg(target_arch = "x86_64")]
+pub(super) type Simd = Option<acdf_core::cpu::Avx2>;
+#[cfg(not(target_arch = "x86_64"))]
+pub(super) type Simd = Option<std::convert::Infallible>;
+
+#[cfg(target_arch = "x86_64")]
+const _: () = assert!(CHUNK.is_multiple_of(acdf_core::search::lanes::STAGE));
 
 /// One `f32` per lane of a chunk.
 type Lanes = [f32; CHUNK];
@@ -39,6 +58,9 @@ trait Frames {
     /// [`frame`](Self::frame) for the geometry loops, without a branch: an
     /// invalid wo gives a valid stand-in, whose results are dropped.
     fn lane(&self, l: usize) -> (Vec3, Outgoing);
+
+    /// Whether lane l's wo is valid ([`frame`](Self::frame) is `Some`).
+    fn valid(&self, l: usize) -> bool;
 }
 
 /// One valid wo for every lane (`sample_batch`, `pdf_batch`): the geometry
@@ -54,6 +76,11 @@ impl Frames for OneFrame {
     #[inline(always)]
     fn lane(&self, _: usize) -> (Vec3, Outgoing) {
         (self.0, self.1)
+    }
+
+    #[inline(always)]
+    fn valid(&self, _: usize) -> bool {
+        true
     }
 }
 
@@ -128,6 +155,11 @@ impl Frames for EachFrame {
         };
         (wo, o)
     }
+
+    #[inline(always)]
+    fn valid(&self, l: usize) -> bool {
+        self.valid[l]
+    }
 }
 
 /// The table points of a chunk, one array per quantity.
@@ -161,14 +193,20 @@ impl OutgoingSampler {
     /// itself: the blend and rotation of wo found once, then
     /// [`sample_chunk`](Self::sample_chunk) per chunk.
     #[inline(always)]
-    pub(super) fn sample_batch_one(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+    pub(super) fn sample_batch_one(
+        &self,
+        simd: Simd,
+        wo: Vec3,
+        u: &[Vec2],
+        out: &mut [Option<BxdfSample>],
+    ) {
         if !is_valid_outgoing(wo) {
             out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
             return;
         }
         let frame = OneFrame(wo, self.outgoing(wo));
         for (uc, oc) in u.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            self.sample_chunk(&frame, uc, oc);
+            self.sample_chunk(simd, &frame, uc, oc);
         }
     }
 
@@ -176,7 +214,13 @@ impl OutgoingSampler {
     /// itself: per chunk the blend and rotation of each wo, then
     /// [`sample_chunk`](Self::sample_chunk).
     #[inline(always)]
-    pub(super) fn sample_each_one(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+    pub(super) fn sample_each_one(
+        &self,
+        simd: Simd,
+        wo: &[Vec3],
+        u: &[Vec2],
+        out: &mut [Option<BxdfSample>],
+    ) {
         let mut frames = EachFrame::new();
         for ((wc, uc), oc) in wo
             .chunks(CHUNK)
@@ -185,28 +229,28 @@ impl OutgoingSampler {
         {
             frames.fill(self, wc);
             let n = wc.len().min(uc.len()).min(oc.len());
-            self.sample_chunk(&frames, &uc[..n], &mut oc[..n]);
+            self.sample_chunk(simd, &frames, &uc[..n], &mut oc[..n]);
         }
     }
 
     /// [`BxdfSampler::pdf_batch`](acdf_core::BxdfSampler::pdf_batch)
     /// itself, as [`sample_batch_one`](Self::sample_batch_one).
     #[inline(always)]
-    pub(super) fn pdf_batch_one(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+    pub(super) fn pdf_batch_one(&self, simd: Simd, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
         if !is_valid_outgoing(wo) {
             out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
             return;
         }
         let frame = OneFrame(wo, self.outgoing(wo));
         for (wc, oc) in wi.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            self.pdf_chunk(&frame, wc, oc);
+            self.pdf_chunk(simd, &frame, wc, oc);
         }
     }
 
     /// [`BxdfSampler::pdf_each`](acdf_core::BxdfSampler::pdf_each) itself,
     /// as [`sample_each_one`](Self::sample_each_one).
     #[inline(always)]
-    pub(super) fn pdf_each_one(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+    pub(super) fn pdf_each_one(&self, simd: Simd, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
         let mut frames = EachFrame::new();
         for ((wc, ic), oc) in wo
             .chunks(CHUNK)
@@ -215,40 +259,94 @@ impl OutgoingSampler {
         {
             frames.fill(self, wc);
             let n = wc.len().min(ic.len()).min(oc.len());
-            self.pdf_chunk(&frames, &ic[..n], &mut oc[..n]);
+            self.pdf_chunk(simd, &frames, &ic[..n], &mut oc[..n]);
         }
     }
 
     /// The draws of one chunk (at most [`CHUNK`] pairs): the table points
-    /// one lane at a time, their angles many at a time, the geometry as
-    /// one loop over the lanes, and each draw's check.
+    /// (in lanes where `simd` allows, one lane at a time otherwise), their
+    /// angles many at a time, the geometry as one loop over the lanes, and
+    /// each draw's check.
     #[inline(always)]
-    fn sample_chunk<F: Frames>(&self, frames: &F, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
+    fn sample_chunk<F: Frames>(
+        &self,
+        simd: Simd,
+        frames: &F,
+        u: &[Vec2],
+        out: &mut [Option<BxdfSample>],
+    ) {
         let n = u.len().min(out.len()).min(CHUNK);
         let map = self.map;
         let mut cosine_u: [Option<Vec2>; CHUNK] = [None; CHUNK];
+        // Each lane's slices and u; a cosine lane or one without a frame
+        // keeps the stand-in (slice 0, u = 0), whose point and geometry
+        // are computed and ignored.
+        let last_slice = self.slices.len() - 1;
+        let (mut drawn, mut other) = ([0i32; CHUNK], [0i32; CHUNK]);
+        let (mut w_drawn, mut u_x, mut u_y): (Lanes, Lanes, Lanes) =
+            ([1.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
+        let mut table_u: [Option<Vec2>; CHUNK] = [None; CHUNK];
+        for l in 0..n {
+            match frames.frame(l).map(|(_, o)| (o, self.route(u[l]))) {
+                Some((o, Route::Table(u))) => {
+                    let (d, b, ux, w) = pick_slice(&o, u);
+                    // The other slice past the last has weight 0: any
+                    // slice stands for it.
+                    (drawn[l], other[l]) = (d as i32, b.min(last_slice) as i32);
+                    (w_drawn[l], u_x[l], u_y[l]) = (w, ux, u.y);
+                    table_u[l] = Some(u);
+                }
+                Some((_, Route::Cosine(u))) => cosine_u[l] = Some(u),
+                None => {}
+            }
+        }
         let mut points = PointLanes {
             x: [0.0; CHUNK],
             v: [0.0; CHUNK],
             p_xv: [0.0; CHUNK],
             same: [false; CHUNK],
         };
-        // The searches, lane by lane (a cosine lane or one without a
-        // frame keeps the point (0, 0), whose geometry is computed and
-        // ignored).
-        for l in 0..n {
-            let point = match frames.frame(l).map(|(_, o)| (o, self.route(u[l]))) {
-                Some((o, Route::Table(u))) => self.table_point(&o, u),
-                Some((_, Route::Cosine(u))) => {
-                    cosine_u[l] = Some(u);
-                    TablePoint::default()
-                }
-                None => TablePoint::default(),
-            };
-            points.x[l] = point.x;
-            points.v[l] = point.v;
-            points.p_xv[l] = point.p_xv;
-            points.same[l] = point.same;
+        // No closures here: a closure would not be compiled into the
+        // caller's AVX2 code, and the intrinsics would become calls.
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+        let mut in_lanes = false;
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = simd;
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = simd {
+            use crate::outgoing::shared::{DrawInputs, DrawnPoints};
+            use acdf_core::search::lanes::STAGE;
+            in_lanes = true;
+            for at in (0..CHUNK).step_by(STAGE) {
+                let input = DrawInputs {
+                    drawn: &drawn[at..],
+                    other: &other[at..],
+                    w_drawn: &w_drawn[at..],
+                    u_x: &u_x[at..],
+                    u_y: &u_y[at..],
+                };
+                let out = DrawnPoints {
+                    x: &mut points.x[at..],
+                    y: &mut points.v[at..],
+                    p: &mut points.p_xv[at..],
+                    same: &mut points.same[at..],
+                };
+                in_lanes &= self
+                    .slices
+                    .sample_lanes(cpu, &input, self.cells, CELL_MARGIN, out);
+            }
+        }
+        if !in_lanes {
+            for l in 0..n {
+                let point = match (frames.frame(l), table_u[l]) {
+                    (Some((_, o)), Some(u)) => self.table_point(&o, u),
+                    _ => TablePoint::default(),
+                };
+                points.x[l] = point.x;
+                points.v[l] = point.v;
+                points.p_xv[l] = point.p_xv;
+                points.same[l] = point.same;
+            }
         }
         // θ_h = (π/2) v² is v² quarter turns, as `HalfMap::angles` has it.
         let mut squares: Lanes = [0.0; CHUNK];
@@ -299,10 +397,11 @@ impl OutgoingSampler {
     }
 
     /// The densities of one chunk (at most [`CHUNK`] pairs): the
-    /// coordinates as one loop over the lanes, then each density's table
-    /// lookups.
+    /// coordinates as one loop over the lanes, the blended densities of
+    /// the table points in lanes where `simd` allows, then each density's
+    /// check and Jacobian (and the table lookups, without lanes).
     #[inline(always)]
-    fn pdf_chunk<F: Frames>(&self, frames: &F, wi: &[Vec3], out: &mut [f32]) {
+    fn pdf_chunk<F: Frames>(&self, simd: Simd, frames: &F, wi: &[Vec3], out: &mut [f32]) {
         let n = wi.len().min(out.len()).min(CHUNK);
         let map = self.map;
         let mut lanes = CoordinateLanes {
@@ -312,6 +411,7 @@ impl OutgoingSampler {
             wo_h: [0.0; CHUNK],
             defined: [false; CHUNK],
         };
+        let (mut k, mut t) = ([0i32; CHUNK], [0.0f32; CHUNK]);
         for l in 0..n {
             let (wo, o) = frames.lane(l);
             let c = coordinates::<false>(map, o.rotation, wo, wi[l]);
@@ -320,6 +420,54 @@ impl OutgoingSampler {
             lanes.sin_h[l] = c.sin_h;
             lanes.wo_h[l] = c.wo_h;
             lanes.defined[l] = c.defined;
+            (k[l], t[l]) = (o.k as i32, o.t);
+        }
+        let mut blended: Lanes = [0.0; CHUNK];
+        // No closures, as in `sample_chunk`.
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+        let mut in_lanes = false;
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = simd;
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = simd {
+            use acdf_core::search::lanes::STAGE;
+            in_lanes = true;
+            for at in (0..CHUNK).step_by(STAGE) {
+                in_lanes &= self.slices.density_lanes(
+                    cpu,
+                    &k[at..],
+                    &t[at..],
+                    &lanes.x[at..],
+                    &lanes.v[at..],
+                    self.cells,
+                    &mut blended[at..],
+                );
+            }
+        }
+        if in_lanes {
+            // What `pdf_with` does with each lane's blended density, as one
+            // loop free of branches, which compiles to SIMD: the same
+            // operations, with every lane's alternatives computed and the
+            // one `pdf_with` takes selected.
+            let a = self.cosine_fraction;
+            for l in 0..n {
+                let w = wi[l];
+                let jacobian = map.jacobian(lanes.v[l], lanes.sin_h[l]);
+                let table = blended[l] / (jacobian * 4.0 * lanes.wo_h[l]);
+                let table = if is_positive_finite(table) & (a < 1.0) & lanes.defined[l] {
+                    table
+                } else {
+                    0.0
+                };
+                let p = acdf_tabulated::mix_with_cosine(a, table, w);
+                let defined = frames.valid(l)
+                    & w.x.is_finite()
+                    & w.y.is_finite()
+                    & w.z.is_finite()
+                    & (w.z > 0.0);
+                out[l] = if defined { p } else { 0.0 };
+            }
+            return;
         }
         for l in 0..n {
             out[l] = match frames.frame(l) {

@@ -655,9 +655,10 @@ impl OutgoingSampler {
         }
     }
 
-    /// The blended table density at defined coordinates `c`.
+    /// The blended density of the two slices at the table point of
+    /// defined coordinates `c` (over the unit square).
     #[inline(always)]
-    fn table_pdf_at(&self, o: &Outgoing, c: &Coordinates) -> f32 {
+    fn blended_density(&self, o: &Outgoing, c: &Coordinates) -> f32 {
         let (k, t) = (o.k, o.t);
         let mut p = 0.0;
         if let (Some(cell), _) = self.slices.locate(c.x, c.v, self.cells, (0.0, 0.0)) {
@@ -668,6 +669,13 @@ impl OutgoingSampler {
                 p += t * self.slices.density(k + 1, &cell);
             }
         }
+        p
+    }
+
+    /// The table density per solid angle of defined coordinates `c`
+    /// whose [`blended_density`](Self::blended_density) is `p`.
+    #[inline(always)]
+    fn table_pdf_at(&self, p: f32, c: &Coordinates) -> f32 {
         let p = p / (self.map.jacobian(c.v, c.sin_h) * 4.0 * c.wo_h);
         if is_positive_finite(p) {
             p
@@ -682,15 +690,8 @@ impl OutgoingSampler {
     /// completes.
     #[inline(always)]
     fn table_point(&self, o: &Outgoing, u: Vec2) -> TablePoint {
-        let (k, t) = (o.k, o.t);
-        let (drawn, other, ux, w_drawn) = if u.x < 1.0 - t {
-            (k, k + 1, u.x / (1.0 - t), 1.0 - t)
-        } else {
-            (k + 1, k, (u.x - (1.0 - t)) / t, t)
-        };
-        let d = self
-            .slices
-            .sample(drawn, clamp_unit(ux), u.y, self.cells, CELL_MARGIN);
+        let (drawn, other, ux, w_drawn) = pick_slice(o, u);
+        let d = self.slices.sample(drawn, ux, u.y, self.cells, CELL_MARGIN);
         let (x, v) = d.p;
         let mut p_xv = w_drawn * self.slices.density(drawn, &d.cell);
         let w_other = 1.0 - w_drawn;
@@ -716,6 +717,21 @@ impl OutgoingSampler {
         let d = draw_at(self.map, o, wo, &point, angles);
         (d.wi, d.shortcut.then_some(d.table))
     }
+}
+
+/// The slice a table draw with u comes from: slice k with probability
+/// 1 - t, slice k + 1 with t (u.x decides and is rescaled). Returns the
+/// drawn slice, the other, u.x rescaled to [0, 1) and the drawn slice's
+/// weight.
+#[inline(always)]
+fn pick_slice(o: &Outgoing, u: Vec2) -> (usize, usize, f32, f32) {
+    let (k, t) = (o.k, o.t);
+    let (drawn, other, ux, w_drawn) = if u.x < 1.0 - t {
+        (k, k + 1, u.x / (1.0 - t), 1.0 - t)
+    } else {
+        (k + 1, k, (u.x - (1.0 - t)) / t, t)
+    };
+    (drawn, other, clamp_unit(ux), w_drawn)
 }
 
 /// A table draw before its geometry: the point (x, v) drawn in the unit
@@ -975,7 +991,8 @@ impl OutgoingSampler {
         if !wi.is_finite() || !(wi.z > 0.0) {
             return 0.0;
         }
-        self.pdf_with(o, wi, &coordinates::<true>(self.map, o.rotation, wo, wi))
+        let c = coordinates::<true>(self.map, o.rotation, wo, wi);
+        self.pdf_with(o, wi, &c)
     }
 
     /// [`pdf_in`](Self::pdf_in) given the coordinates `c` of wi (found for
@@ -988,7 +1005,7 @@ impl OutgoingSampler {
         let a = self.cosine_fraction;
         let table = if a < 1.0 {
             if c.defined {
-                self.table_pdf_at(o, c)
+                self.table_pdf_at(self.blended_density(o, c), c)
             } else {
                 0.0
             }
@@ -1014,24 +1031,25 @@ impl OutgoingSampler {
     }
 
     /// [`sample_batch_one`](Self::sample_batch_one) compiled for AVX2
-    /// (the lane loops of a chunk in 8-wide vectors).
+    /// (the lane loops of a chunk in 8-wide vectors), with the token that
+    /// lets its searches run in lanes.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn sample_batch_avx2(
         &self,
-        _: acdf_core::cpu::Avx2,
+        cpu: acdf_core::cpu::Avx2,
         wo: Vec3,
         u: &[Vec2],
         out: &mut [Option<BxdfSample>],
     ) {
-        self.sample_batch_one(wo, u, out)
+        self.sample_batch_one(Some(cpu), wo, u, out)
     }
 
     /// [`pdf_batch_one`](Self::pdf_batch_one) compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn pdf_batch_avx2(&self, _: acdf_core::cpu::Avx2, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
-        self.pdf_batch_one(wo, wi, out)
+    fn pdf_batch_avx2(&self, cpu: acdf_core::cpu::Avx2, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+        self.pdf_batch_one(Some(cpu), wo, wi, out)
     }
 
     /// [`sample_each_one`](Self::sample_each_one) compiled for AVX2.
@@ -1039,19 +1057,19 @@ impl OutgoingSampler {
     #[target_feature(enable = "avx2,fma")]
     fn sample_each_avx2(
         &self,
-        _: acdf_core::cpu::Avx2,
+        cpu: acdf_core::cpu::Avx2,
         wo: &[Vec3],
         u: &[Vec2],
         out: &mut [Option<BxdfSample>],
     ) {
-        self.sample_each_one(wo, u, out)
+        self.sample_each_one(Some(cpu), wo, u, out)
     }
 
     /// [`pdf_each_one`](Self::pdf_each_one) compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn pdf_each_avx2(&self, _: acdf_core::cpu::Avx2, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
-        self.pdf_each_one(wo, wi, out)
+    fn pdf_each_avx2(&self, cpu: acdf_core::cpu::Avx2, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+        self.pdf_each_one(Some(cpu), wo, wi, out)
     }
 }
 
@@ -1091,7 +1109,7 @@ impl BxdfSampler for OutgoingSampler {
             // SAFETY: as for `sample`.
             return unsafe { self.sample_batch_avx2(cpu, wo, u, out) };
         }
-        self.sample_batch_one(wo, u, out)
+        self.sample_batch_one(None, wo, u, out)
     }
 
     /// `pdf` for every wi, with the blend and rotation of wo found once.
@@ -1101,7 +1119,7 @@ impl BxdfSampler for OutgoingSampler {
             // SAFETY: as for `sample`.
             return unsafe { self.pdf_batch_avx2(cpu, wo, wi, out) };
         }
-        self.pdf_batch_one(wo, wi, out)
+        self.pdf_batch_one(None, wo, wi, out)
     }
 
     /// `sample` for every pair, a chunk of 64 at a time as
@@ -1113,7 +1131,7 @@ impl BxdfSampler for OutgoingSampler {
             // SAFETY: as for `sample`.
             return unsafe { self.sample_each_avx2(cpu, wo, u, out) };
         }
-        self.sample_each_one(wo, u, out)
+        self.sample_each_one(None, wo, u, out)
     }
 
     /// `pdf` for every pair, as [`sample_each`](Self::sample_each).
@@ -1123,7 +1141,7 @@ impl BxdfSampler for OutgoingSampler {
             // SAFETY: as for `sample`.
             return unsafe { self.pdf_each_avx2(cpu, wo, wi, out) };
         }
-        self.pdf_each_one(wo, wi, out)
+        self.pdf_each_one(None, wo, wi, out)
     }
 
     /// The breakpoints (4 bytes each) and every slice's stored arrays.

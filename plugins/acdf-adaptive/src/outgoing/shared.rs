@@ -26,8 +26,12 @@ use super::packed::{
     Curve, Segment, Stored, Q, QF,
 };
 use crate::simplify::Simplifier;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
 use crate::AdaptiveCdf2D;
 use acdf_core::{Error, Result};
+#[cfg(target_arch = "x86_64")]
+pub use lanes::{DrawInputs, DrawnPoints};
 
 /// Where a point of the unit square lies on the grid: its marginal
 /// segment `j`, the index `at` of its conditional segment's first vertex
@@ -67,7 +71,17 @@ pub struct SharedSlices {
     cdf: Vec<u16>,
     stride: usize,
     count: usize,
+    /// The most vertices a conditional has, less one (the length of its
+    /// search in the batch lanes).
+    longest_conditional: usize,
 }
+
+/// Entries after the CDF values and the conditional positions that are
+/// not part of them: a lane gather reads four bytes at an entry, so the
+/// last value (two bytes) and the last position (one byte) need them
+/// (`lanes.rs`). They are not stored in files or counted as storage.
+const CDF_PAD: usize = 1;
+const POSITION_PAD: usize = 3;
 
 impl SharedSlices {
     /// The slices of the tables `tables` (row-major, `n_y` rows of `n_x`,
@@ -198,15 +212,44 @@ impl SharedSlices {
                 cdf.extend(quantise(&masses));
             }
         }
-        let grid = [marginal_pos, offsets].concat();
-        Ok(SharedSlices {
+        Ok(SharedSlices::assemble(
+            [marginal_pos, offsets].concat(),
+            m,
+            conditional_pos,
+            cdf,
+            tables.len(),
+        ))
+    }
+
+    /// The slices of their arrays (unpadded; `grid` the marginal positions
+    /// then the offsets), padded for the lanes.
+    fn assemble(
+        grid: Vec<u16>,
+        m: usize,
+        mut conditional_pos: Vec<u8>,
+        mut cdf: Vec<u16>,
+        count: usize,
+    ) -> Self {
+        let stride = m + conditional_pos.len();
+        let longest_conditional = grid
+            .get(m..)
+            .unwrap_or(&[])
+            .windows(2)
+            .map(|w| (w[1] as usize).saturating_sub(w[0] as usize + 1))
+            .max()
+            .unwrap_or(0)
+            .max(1);
+        conditional_pos.extend([0; POSITION_PAD]);
+        cdf.extend([0; CDF_PAD]);
+        SharedSlices {
             grid,
             m,
             conditional_pos,
             cdf,
             stride,
-            count: tables.len(),
-        })
+            count,
+            longest_conditional,
+        }
     }
 
     /// Slices of their stored arrays, as a decoder reads them (check with
@@ -219,16 +262,13 @@ impl SharedSlices {
         conditional_pos: Vec<u8>,
         slice_cdfs: &[Vec<u16>],
     ) -> Self {
-        let m = marginal_pos.len();
-        let stride = m + conditional_pos.len();
-        SharedSlices {
-            grid: [marginal_pos, offsets].concat(),
-            m,
+        SharedSlices::assemble(
+            [marginal_pos, offsets].concat(),
+            marginal_pos.len(),
             conditional_pos,
-            cdf: slice_cdfs.concat(),
-            stride,
-            count: slice_cdfs.len(),
-        }
+            slice_cdfs.concat(),
+            slice_cdfs.len(),
+        )
     }
 
     /// The number of slices.
@@ -254,7 +294,7 @@ impl SharedSlices {
 
     /// The shared conditional positions (φ_h grid indices).
     pub fn conditional_pos(&self) -> &[u8] {
-        &self.conditional_pos
+        &self.conditional_pos[..self.conditional_pos.len() - POSITION_PAD]
     }
 
     /// Slice `s`'s CDF values: the marginal's, then the conditionals'.
@@ -384,7 +424,7 @@ impl SharedSlices {
     /// Bytes kept: two per position of the marginal, offset and CDF value,
     /// one per conditional position.
     pub fn storage_bytes(&self) -> usize {
-        2 * (self.grid.len() + self.cdf.len()) + self.conditional_pos.len()
+        2 * (self.grid.len() + self.cdf.len() - CDF_PAD) + self.conditional_pos.len() - POSITION_PAD
     }
 
     /// The number of marginal vertices.
@@ -395,7 +435,7 @@ impl SharedSlices {
     /// The number of conditional vertices, and of non-empty conditionals.
     pub fn conditional_vertices(&self) -> (usize, usize) {
         let stored = self.offsets().windows(2).filter(|w| w[1] > w[0]).count();
-        (self.conditional_pos.len(), stored)
+        (self.conditional_pos().len(), stored)
     }
 
     /// Check what a decoder read: the grid's curves run from 0 to n with
@@ -405,12 +445,13 @@ impl SharedSlices {
     pub fn validate(&self, n_x: usize, n_y: usize) -> std::result::Result<(), String> {
         let m = self.m;
         let offsets = self.offsets();
-        let c = self.conditional_pos.len();
+        let c = self.conditional_pos().len();
         check_offsets(offsets, m, c)?;
-        if self.count == 0 || self.stride != m + c || self.cdf.len() != self.count * self.stride {
+        let values = self.cdf.len() - CDF_PAD;
+        if self.count == 0 || self.stride != m + c || values != self.count * self.stride {
             return Err(format!(
                 "{} CDF values for {} slices of {} vertices",
-                self.cdf.len(),
+                values,
                 self.count,
                 m + c
             ));

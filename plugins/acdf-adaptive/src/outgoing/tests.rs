@@ -176,7 +176,7 @@ fn batch_forms_equal_single_calls() {
         let mut drawn = vec![None; u.len()];
         s.sample_batch(wo, &u, &mut drawn);
         let mut portable = vec![None; u.len()];
-        s.sample_batch_one(wo, &u, &mut portable);
+        s.sample_batch_one(None, wo, &u, &mut portable);
         let mut wis = Vec::new();
         for ((&u, d), p) in u.iter().zip(&drawn).zip(&portable) {
             let one = s.sample(wo, u);
@@ -194,7 +194,7 @@ fn batch_forms_equal_single_calls() {
         let mut densities = vec![0.0; wis.len()];
         s.pdf_batch(wo, &wis, &mut densities);
         let mut portable = vec![0.0; wis.len()];
-        s.pdf_batch_one(wo, &wis, &mut portable);
+        s.pdf_batch_one(None, wo, &wis, &mut portable);
         for ((&wi, &p), &q) in wis.iter().zip(&densities).zip(&portable) {
             assert_eq!(s.pdf(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
             assert_eq!(s.pdf_one(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
@@ -237,7 +237,7 @@ fn each_forms_equal_single_calls() {
     let mut drawn = vec![None; n];
     s.sample_each(&wo, &u, &mut drawn);
     let mut portable = vec![None; n];
-    s.sample_each_one(&wo, &u, &mut portable);
+    s.sample_each_one(None, &wo, &u, &mut portable);
     let mut wis = Vec::new();
     for k in 0..n {
         assert_eq!(
@@ -256,7 +256,7 @@ fn each_forms_equal_single_calls() {
     let mut densities = vec![0.0; n];
     s.pdf_each(&wo, &wis, &mut densities);
     let mut portable = vec![0.0; n];
-    s.pdf_each_one(&wo, &wis, &mut portable);
+    s.pdf_each_one(None, &wo, &wis, &mut portable);
     for k in 0..n {
         assert_eq!(
             s.pdf(wo[k], wis[k]).to_bits(),
@@ -440,6 +440,147 @@ fn slices_without_mass_stay_valid() {
     none.validate(nx, ny).unwrap();
     assert_eq!(none.marginal_vertex_count(), 2);
     assert!((none.pdf(0, 0.3, 0.7, cells) - 1.0).abs() < 1e-4);
+}
+
+/// The lane searches of the shared grid (`shared/lanes.rs`) give the bits
+/// of the one-at-a-time draw and density: on slices with a ramp, no mass
+/// and a single spike, and on the built-in nickel at the default
+/// resolution (longer curves, several lane steps), for u at 0 and next to
+/// 1, points outside the unit square and NaN, every pair of slices and
+/// blend weights 0 and 1 among them.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn lane_draws_and_densities_equal_single_ones() {
+    use crate::outgoing::shared::{DrawInputs, DrawnPoints};
+    use acdf_core::search::lanes::STAGE;
+    let Some(cpu) = acdf_core::cpu::avx2() else {
+        println!("skipped: this CPU has no AVX2 and FMA (or ACDF_CPU=portable)");
+        return;
+    };
+    let (nx, ny) = (8, 16);
+    let ramp: Vec<f32> = (0..nx * ny).map(|i| (i % 7) as f32).collect();
+    let spike: Vec<f32> = (0..nx * ny).map(|i| (i == 37) as u8 as f32 * 5.0).collect();
+    let zero = vec![0.0f32; nx * ny];
+    let simplifier = simplifier_by_name("chi2").unwrap();
+    let toy = SharedSlices::build(&[ramp, zero, spike], nx, ny, &*simplifier, 1e-3).unwrap();
+    let s = OutgoingSampler::new(
+        nickel(),
+        Resolution::default(),
+        OutgoingBuilder::by_name("chi2", None, 128).unwrap(),
+    )
+    .unwrap();
+    // Curves longer than the sixteen entries of one lane step.
+    assert!(s.slices().marginal_vertex_count() > 16 && s.slices().len() > 4);
+    let grids = [(toy, (nx as f32, ny as f32)), (s.slices().clone(), s.cells)];
+    let mut state = 0x9e37_79b9_u32;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        (state >> 8) as f32 / (1u32 << 24) as f32
+    };
+    let bits = |v: f32| v.to_bits();
+    for (g, cells) in &grids {
+        let count = g.len() as i32;
+        for round in 0..40 {
+            let special = |l: usize, v: f32| match (round + l) % 11 {
+                0 => 0.0,
+                1 => acdf_core::ONE_MINUS_EPSILON,
+                _ => v,
+            };
+            let drawn: Vec<i32> = (0..STAGE)
+                .map(|l| (l as i32 + round as i32) % count)
+                .collect();
+            let other: Vec<i32> = (0..STAGE).map(|l| (l as i32 * 7 + 1) % count).collect();
+            let w: Vec<f32> = (0..STAGE)
+                .map(|l| match l % 5 {
+                    0 => 1.0,
+                    1 => 0.0,
+                    _ => next(),
+                })
+                .collect();
+            let u_x: Vec<f32> = (0..STAGE).map(|l| special(l, next())).collect();
+            let u_y: Vec<f32> = (0..STAGE).map(|l| special(l + 3, next())).collect();
+            let (mut x, mut y, mut p, mut same) = (
+                vec![0.0; STAGE],
+                vec![0.0; STAGE],
+                vec![0.0; STAGE],
+                vec![false; STAGE],
+            );
+            let input = DrawInputs {
+                drawn: &drawn,
+                other: &other,
+                w_drawn: &w,
+                u_x: &u_x,
+                u_y: &u_y,
+            };
+            let out = DrawnPoints {
+                x: &mut x,
+                y: &mut y,
+                p: &mut p,
+                same: &mut same,
+            };
+            assert!(g.sample_lanes(cpu, &input, *cells, CELL_MARGIN, out));
+            for l in 0..STAGE {
+                let d = g.sample(drawn[l] as usize, u_x[l], u_y[l], *cells, CELL_MARGIN);
+                let mut want = w[l] * g.density(drawn[l] as usize, &d.cell);
+                if 1.0 - w[l] > 0.0 {
+                    want += (1.0 - w[l]) * g.density(other[l] as usize, &d.cell);
+                }
+                assert_eq!(
+                    (bits(x[l]), bits(y[l])),
+                    (bits(d.p.0), bits(d.p.1)),
+                    "lane {l}"
+                );
+                assert_eq!(
+                    (bits(p[l]), same[l]),
+                    (bits(want), d.same_around),
+                    "lane {l}"
+                );
+            }
+            // Densities: points in and out of the square, NaN among them.
+            let k: Vec<i32> = (0..STAGE)
+                .map(|l| (l as i32 + round as i32) % count)
+                .collect();
+            let t: Vec<f32> = (0..STAGE)
+                .map(|l| {
+                    if k[l] + 1 < count && l % 3 != 0 {
+                        special(l, next())
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let pick = |l: usize, v: f32| match (round + 2 * l) % 13 {
+                0 => f32::NAN,
+                1 => -0.25,
+                2 => 1.5,
+                _ => special(l, v),
+            };
+            let px: Vec<f32> = (0..STAGE).map(|l| pick(l, next())).collect();
+            let py: Vec<f32> = (0..STAGE).map(|l| pick(l + 5, next())).collect();
+            let mut blended = vec![0.0; STAGE];
+            assert!(g.density_lanes(cpu, &k, &t, &px, &py, *cells, &mut blended));
+            for l in 0..STAGE {
+                let mut want = 0.0;
+                if let (Some(cell), _) = g.locate(px[l], py[l], *cells, (0.0, 0.0)) {
+                    if t[l] < 1.0 {
+                        want += (1.0 - t[l]) * g.density(k[l] as usize, &cell);
+                    }
+                    if t[l] > 0.0 {
+                        want += t[l] * g.density(k[l] as usize + 1, &cell);
+                    }
+                }
+                assert_eq!(
+                    bits(blended[l]),
+                    bits(want),
+                    "lane {l}: ({}, {})",
+                    px[l],
+                    py[l]
+                );
+            }
+        }
+    }
 }
 
 /// The number of CDF values of the last slice of a file.

@@ -1,0 +1,450 @@
+//! The draws and densities of a stage of [`STAGE`](acdf_core::search::lanes::STAGE) lanes on the shared
+//! grid, in AVX2 lanes: what [`SharedSlices::sample`] and
+//! [`SharedSlices::locate`] with [`SharedSlices::density`] do one at a
+//! time, for the batch paths of the outgoing sampler (`batch.rs`).
+//!
+//! Each lane searches its own slice's CDF values (a draw) or the shared
+//! positions (a density) by the binary lifting of
+//! [`acdf_core::search::narrow`], whose counts are those of the windows
+//! one draw at a time compares, and reads the two ends of each segment in
+//! one gather. The floating-point operations are those of the scalar path
+//! in the same order, without fused multiply-adds, so every result is
+//! bit for bit the scalar one (`lane_draws_and_densities_equal_single_ones`
+//! in the tests of `outgoing`).
+
+#![allow(clippy::needless_range_loop)]
+
+use super::super::packed::QF;
+use super::SharedSlices;
+use acdf_core::cpu::Avx2;
+use acdf_core::search::lanes::GROUPS;
+use acdf_core::search::narrow::{count_at_or_below, first_step, Pairs};
+use acdf_core::ONE_MINUS_EPSILON;
+use std::arch::x86_64::*;
+
+/// What a stage of draws starts from, one entry per lane: the slice drawn
+/// from and the other slice of the blend (any valid slice where its weight
+/// is 0), the drawn slice's weight, and u (clamped to [0, 1)).
+pub struct DrawInputs<'a> {
+    pub drawn: &'a [i32],
+    pub other: &'a [i32],
+    pub w_drawn: &'a [f32],
+    pub u_x: &'a [f32],
+    pub u_y: &'a [f32],
+}
+
+/// What a stage of draws gives: the point (x, y), its blended density
+/// and whether every slice's density is the same over the box around it.
+pub struct DrawnPoints<'a> {
+    pub x: &'a mut [f32],
+    pub y: &'a mut [f32],
+    pub p: &'a mut [f32],
+    pub same: &'a mut [bool],
+}
+
+/// The arrays as the lanes read them; `None` when one is too short for a
+/// gather (which the padding rules out).
+struct Sources<'a> {
+    cpu: Avx2,
+    grid: Pairs<'a, u16>,
+    positions: Pairs<'a, u8>,
+    cdf: Pairs<'a, u16>,
+    /// The stride between slices' values and m, in every lane.
+    stride: __m256i,
+    m: __m256i,
+    /// The last slice's index, in every lane.
+    last_slice: __m256i,
+}
+
+/// Lanes 8g..8g + 8 of `v`; panics if `v` is shorter.
+#[inline(always)]
+fn load_f(_: Avx2, g: usize, v: &[f32]) -> __m256 {
+    let v = &v[8 * g..8 * g + 8];
+    // SAFETY: the token proves the CPU has AVX2; the load reads the eight
+    // floats of `v`.
+    unsafe { _mm256_loadu_ps(v.as_ptr()) }
+}
+
+/// [`load_f`] of integers.
+#[inline(always)]
+fn load_i(_: Avx2, g: usize, v: &[i32]) -> __m256i {
+    let v = &v[8 * g..8 * g + 8];
+    // SAFETY: as `load_f`.
+    unsafe { _mm256_loadu_si256(v.as_ptr() as *const __m256i) }
+}
+
+/// Store `v` to lanes 8g..8g + 8 of `out`; panics if `out` is shorter.
+#[inline(always)]
+fn store_f(_: Avx2, g: usize, v: __m256, out: &mut [f32]) {
+    let out = &mut out[8 * g..8 * g + 8];
+    // SAFETY: the token proves the CPU has AVX2; the store writes the
+    // eight floats of `out`.
+    unsafe { _mm256_storeu_ps(out.as_mut_ptr(), v) }
+}
+
+impl SharedSlices {
+    #[inline(always)]
+    fn sources(&self, cpu: Avx2) -> Option<Sources<'_>> {
+        // SAFETY: the token proves the CPU has AVX2.
+        let (stride, m, last_slice) = unsafe {
+            (
+                _mm256_set1_epi32(self.stride as i32),
+                _mm256_set1_epi32(self.m as i32),
+                _mm256_set1_epi32(self.count as i32 - 1),
+            )
+        };
+        Some(Sources {
+            cpu,
+            grid: Pairs::new(&self.grid)?,
+            positions: Pairs::new(&self.conditional_pos)?,
+            cdf: Pairs::new(&self.cdf)?,
+            stride,
+            m,
+            last_slice,
+        })
+    }
+
+    /// [`sample`](Self::sample) for the [`STAGE`](acdf_core::search::lanes::STAGE) lanes of `input`, with
+    /// the blended density `w_drawn` d_drawn + (1 - w_drawn) d_other of
+    /// the drawn cell (the other term only where its weight is positive).
+    /// Returns false, writing nothing, if the arrays cannot be read by
+    /// lanes. Slice indices are clamped into [0, [`len`](Self::len)), and
+    /// the slices must be valid ([`validate`](Self::validate)). Panics if
+    /// a slice of `input` or `out` holds fewer than [`STAGE`](acdf_core::search::lanes::STAGE) lanes.
+    #[inline(always)]
+    pub fn sample_lanes(
+        &self,
+        cpu: Avx2,
+        input: &DrawInputs<'_>,
+        n: (f32, f32),
+        margin: (f32, f32),
+        out: DrawnPoints<'_>,
+    ) -> bool {
+        let Some(src) = self.sources(cpu) else {
+            return false;
+        };
+        let (n_x, n_y) = n;
+        let m = self.m as i32;
+        // SAFETY: the token proves the CPU has AVX2. Every gather index
+        // is derived from what `validate` checked: a slice's values start
+        // at s * stride with s clamped into [0, count), its marginal
+        // search reads its values 1..m - 1, the pair at j <= m - 2 ends at
+        // m - 1; the offsets pair at m + j ends at 2m - 1, inside the
+        // grid; a conditional's search reads its values a + 1 ..= b - 1
+        // and its pair at a + i <= b - 2 ends at b - 1 < c, where the CDF
+        // padding keeps the last pair of the last slice readable and the
+        // positions' padding the last position. A lane whose marginal
+        // segment has no conditional (never drawn from valid slices) is
+        // pointed at its slice's first conditional value instead.
+        unsafe {
+            let stride = src.stride;
+            let one = _mm256_set1_epi32(1);
+            let two = _mm256_set1_epi32(2);
+            let zero_i = _mm256_setzero_si256();
+            let m_v = src.m;
+            let qf = _mm256_set1_ps(QF);
+            let zero = _mm256_setzero_ps();
+            let one_f = _mm256_set1_ps(1.0);
+            let half = _mm256_set1_ps(0.5);
+            let key_max = _mm256_set1_ps(u16::MAX as f32);
+            let mut base = [zero_i; GROUPS];
+            let mut key = [zero_i; GROUPS];
+            let mut us_y = [zero; GROUPS];
+            let mut us_x = [zero; GROUPS];
+            for g in 0..GROUPS {
+                base[g] =
+                    _mm256_mullo_epi32(slice_index(&src, load_i(cpu, g, input.drawn)), stride);
+                us_y[g] = _mm256_mul_ps(load_f(cpu, g, input.u_y), qf);
+                us_x[g] = _mm256_mul_ps(load_f(cpu, g, input.u_x), qf);
+                key[g] = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(us_y[g], zero), key_max));
+            }
+            // The marginal: each lane's values 1..=m - 1.
+            let mut from = [zero_i; GROUPS];
+            for g in 0..GROUPS {
+                from[g] = _mm256_add_epi32(base[g], one);
+            }
+            let j = count_at_or_below(
+                cpu,
+                &src.cdf,
+                &from,
+                &[_mm256_set1_epi32(m - 2); GROUPS],
+                &key,
+                first_step(self.m - 1),
+            );
+            let mut last = [zero_i; GROUPS];
+            let mut a = [zero_i; GROUPS];
+            let mut y = [zero; GROUPS];
+            let mut segment_y = [(zero, zero); GROUPS];
+            let mut mass_y = [zero; GROUPS];
+            for g in 0..GROUPS {
+                let (c0, c1) = src.cdf.gather(cpu, _mm256_add_epi32(base[g], j[g]));
+                let (p0, p1) = src.grid.gather(cpu, j[g]);
+                let (p0, p1) = (_mm256_cvtepi32_ps(p0), _mm256_cvtepi32_ps(p1));
+                y[g] = invert(us_y[g], (c0, c1), (p0, p1), n_y, (zero, one_f, half));
+                segment_y[g] = (p0, p1);
+                mass_y[g] = _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0));
+                let (at, end) = src.grid.gather(cpu, _mm256_add_epi32(m_v, j[g]));
+                let length = _mm256_sub_epi32(end, at);
+                let has = _mm256_cmpgt_epi32(length, _mm256_set1_epi32(1));
+                a[g] = _mm256_and_si256(at, has);
+                last[g] = _mm256_and_si256(_mm256_sub_epi32(length, two), has);
+                let first = _mm256_add_epi32(_mm256_add_epi32(base[g], m_v), a[g]);
+                from[g] = _mm256_add_epi32(first, _mm256_and_si256(one, has));
+                let key_x = _mm256_min_ps(_mm256_max_ps(us_x[g], zero), key_max);
+                key[g] = _mm256_cvttps_epi32(key_x);
+            }
+            // The conditional of each lane's marginal segment.
+            let i = count_at_or_below(
+                cpu,
+                &src.cdf,
+                &from,
+                &last,
+                &key,
+                first_step(self.longest_conditional),
+            );
+            let nn = _mm256_set1_ps(n_x * n_y);
+            let qq = _mm256_set1_ps(QF * QF);
+            let (mx, my) = (
+                _mm256_set1_ps(margin.0 * n_x),
+                _mm256_set1_ps(margin.1 * n_y),
+            );
+            let (nx_v, ny_v) = (_mm256_set1_ps(n_x), _mm256_set1_ps(n_y));
+            for g in 0..GROUPS {
+                let at = _mm256_add_epi32(a[g], i[g]);
+                let (c0, c1) = src
+                    .cdf
+                    .gather(cpu, _mm256_add_epi32(_mm256_add_epi32(base[g], m_v), at));
+                let (q0, q1) = src.positions.gather(cpu, at);
+                let (q0, q1) = (_mm256_cvtepi32_ps(q0), _mm256_cvtepi32_ps(q1));
+                let x = invert(us_x[g], (c0, c1), (q0, q1), n_x, (zero, one_f, half));
+                let width = _mm256_mul_ps(
+                    _mm256_sub_ps(segment_y[g].1, segment_y[g].0),
+                    _mm256_sub_ps(q1, q0),
+                );
+                let scale = _mm256_div_ps(nn, _mm256_mul_ps(width, qq));
+                let mass = _mm256_mul_ps(mass_y[g], _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0)));
+                let drawn = _mm256_mul_ps(mass, scale);
+                // The other slice at the same cell.
+                let other =
+                    _mm256_mullo_epi32(slice_index(&src, load_i(cpu, g, input.other)), stride);
+                let (o0, o1) = src.cdf.gather(cpu, _mm256_add_epi32(other, j[g]));
+                let (r0, r1) = src
+                    .cdf
+                    .gather(cpu, _mm256_add_epi32(_mm256_add_epi32(other, m_v), at));
+                let other_mass = _mm256_mul_ps(
+                    _mm256_cvtepi32_ps(_mm256_sub_epi32(o1, o0)),
+                    _mm256_cvtepi32_ps(_mm256_sub_epi32(r1, r0)),
+                );
+                let other_density = _mm256_mul_ps(other_mass, scale);
+                let w_drawn = load_f(cpu, g, input.w_drawn);
+                let w_other = _mm256_sub_ps(one_f, w_drawn);
+                let p = _mm256_mul_ps(w_drawn, drawn);
+                let with_other = _mm256_add_ps(p, _mm256_mul_ps(w_other, other_density));
+                let p = _mm256_blendv_ps(p, with_other, _mm256_cmp_ps::<_CMP_GT_OQ>(w_other, zero));
+                let same = _mm256_and_ps(
+                    inside(_mm256_mul_ps(y[g], ny_v), my, segment_y[g]),
+                    inside(_mm256_mul_ps(x, nx_v), mx, (q0, q1)),
+                );
+                store_f(cpu, g, x, out.x);
+                store_f(cpu, g, y[g], out.y);
+                store_f(cpu, g, p, out.p);
+                let mask = _mm256_movemask_ps(same);
+                for l in 0..8 {
+                    out.same[8 * g + l] = mask >> l & 1 == 1;
+                }
+            }
+        }
+        true
+    }
+
+    /// For the [`STAGE`](acdf_core::search::lanes::STAGE) lanes of points (x, y) in [0, 1)^2 (or anything,
+    /// for lanes whose result is dropped), the blended density
+    /// (1 - t) d_k + t d_{k+1} (each term only where its weight is
+    /// positive; 0 where no slice has mass), as
+    /// [`locate`](Self::locate) and [`density`](Self::density) find it one
+    /// at a time. `k + 1` is read only where `t > 0`; slice indices are
+    /// clamped into [0, [`len`](Self::len)), and the slices must be valid.
+    /// Panics if a slice holds fewer than [`STAGE`](acdf_core::search::lanes::STAGE) lanes. Returns
+    /// false, writing nothing, if the arrays cannot be read by lanes.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn density_lanes(
+        &self,
+        cpu: Avx2,
+        k: &[i32],
+        t: &[f32],
+        x: &[f32],
+        y: &[f32],
+        n: (f32, f32),
+        out: &mut [f32],
+    ) -> bool {
+        let Some(src) = self.sources(cpu) else {
+            return false;
+        };
+        let (n_x, n_y) = n;
+        let m = self.m as i32;
+        // SAFETY: the token proves the CPU has AVX2. The indices: the
+        // marginal search reads positions 1..=m - 1 and its pair at
+        // j <= m - 2 ends at m - 1; the offsets pair at m + j ends at
+        // 2m - 1, inside the grid; a conditional's search reads positions
+        // a + 1 ..= b - 1 and its pair at a + i <= b - 2 ends at b - 1,
+        // the positions' padding keeping the last readable; a lane whose
+        // segment has no conditional reads position 0 and value 0 of its
+        // slices instead, and its density is 0. Slice k is below count
+        // and k + 1 (read only where t > 0, k again elsewhere) are
+        // clamped into [0, count).
+        unsafe {
+            let one = _mm256_set1_epi32(1);
+            let two = _mm256_set1_epi32(2);
+            let zero_i = _mm256_setzero_si256();
+            let m_v = src.m;
+            let zero = _mm256_setzero_ps();
+            let one_f = _mm256_set1_ps(1.0);
+            let mut key = [zero_i; GROUPS];
+            for g in 0..GROUPS {
+                let ty = _mm256_mul_ps(load_f(cpu, g, y), _mm256_set1_ps(n_y));
+                let ty = _mm256_min_ps(_mm256_max_ps(ty, zero), _mm256_set1_ps(u16::MAX as f32));
+                key[g] = _mm256_cvttps_epi32(ty);
+            }
+            let j = count_at_or_below(
+                cpu,
+                &src.grid,
+                &[one; GROUPS],
+                &[_mm256_set1_epi32(m - 2); GROUPS],
+                &key,
+                first_step(self.m - 1),
+            );
+            let mut has = [zero_i; GROUPS];
+            let mut from = [zero_i; GROUPS];
+            let mut last = [zero_i; GROUPS];
+            for g in 0..GROUPS {
+                let (a, b) = src.grid.gather(cpu, _mm256_add_epi32(m_v, j[g]));
+                let length = _mm256_sub_epi32(b, a);
+                has[g] = _mm256_cmpgt_epi32(length, one);
+                from[g] = _mm256_and_si256(_mm256_add_epi32(a, one), has[g]);
+                last[g] = _mm256_and_si256(_mm256_sub_epi32(length, two), has[g]);
+                let tx = _mm256_mul_ps(load_f(cpu, g, x), _mm256_set1_ps(n_x));
+                let tx = _mm256_min_ps(_mm256_max_ps(tx, zero), _mm256_set1_ps(u8::MAX as f32));
+                key[g] = _mm256_cvttps_epi32(tx);
+            }
+            let i = count_at_or_below(
+                cpu,
+                &src.positions,
+                &from,
+                &last,
+                &key,
+                first_step(self.longest_conditional),
+            );
+            let nn = _mm256_set1_ps(n_x * n_y);
+            let qq = _mm256_set1_ps(QF * QF);
+            for g in 0..GROUPS {
+                // The conditional's first vertex is from - 1 where it has one.
+                let at = _mm256_and_si256(
+                    _mm256_add_epi32(_mm256_sub_epi32(from[g], one), i[g]),
+                    has[g],
+                );
+                let (p0, p1) = src.grid.gather(cpu, j[g]);
+                let (q0, q1) = src.positions.gather(cpu, at);
+                let width = _mm256_mul_ps(
+                    _mm256_cvtepi32_ps(_mm256_sub_epi32(p1, p0)),
+                    _mm256_cvtepi32_ps(_mm256_sub_epi32(q1, q0)),
+                );
+                let scale = _mm256_div_ps(nn, _mm256_mul_ps(width, qq));
+                let t = load_f(cpu, g, t);
+                let later = _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero);
+                let k = load_i(cpu, g, k);
+                let k1 = _mm256_add_epi32(k, _mm256_and_si256(one, _mm256_castps_si256(later)));
+                let (k, k1) = (slice_index(&src, k), slice_index(&src, k1));
+                let mut p = zero;
+                let first = _mm256_add_ps(
+                    p,
+                    _mm256_mul_ps(_mm256_sub_ps(one_f, t), density(&src, k, j[g], at, scale)),
+                );
+                p = _mm256_blendv_ps(p, first, _mm256_cmp_ps::<_CMP_LT_OQ>(t, one_f));
+                let second = _mm256_add_ps(p, _mm256_mul_ps(t, density(&src, k1, j[g], at, scale)));
+                p = _mm256_blendv_ps(p, second, later);
+                p = _mm256_and_ps(p, _mm256_castsi256_ps(has[g]));
+                store_f(cpu, g, p, out);
+            }
+        }
+        true
+    }
+}
+
+/// Slice indices clamped into [0, count): what makes every gather of a
+/// slice's values safe whatever the caller passes (a valid index is kept).
+///
+/// # Safety
+/// AVX2.
+#[inline(always)]
+unsafe fn slice_index(src: &Sources<'_>, s: __m256i) -> __m256i {
+    // SAFETY: the caller's contract: AVX2.
+    unsafe { _mm256_max_epi32(_mm256_min_epi32(s, src.last_slice), _mm256_setzero_si256()) }
+}
+
+/// Whether [t - margin, t + margin] lies inside the segment (p0, p1), as
+/// `Segment::inside`.
+///
+/// # Safety
+/// AVX2.
+#[inline(always)]
+unsafe fn inside(t: __m256, margin: __m256, (p0, p1): (__m256, __m256)) -> __m256 {
+    // SAFETY: the caller's contract: AVX2.
+    unsafe {
+        _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_LE_OQ>(p0, _mm256_sub_ps(t, margin)),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(t, margin), p1),
+        )
+    }
+}
+
+/// Slice s's density in the cell of marginal segment j and conditional
+/// vertex `at`, whose scale is `scale`, as [`SharedSlices::density`].
+///
+/// # Safety
+/// AVX2; every s is below the slices' count and (j, at) a cell of the
+/// grid (or 0, 0), so that every gather reads inside the CDF values.
+#[inline(always)]
+unsafe fn density(src: &Sources<'_>, s: __m256i, j: __m256i, at: __m256i, scale: __m256) -> __m256 {
+    // SAFETY: the caller's contract.
+    unsafe {
+        let s = _mm256_mullo_epi32(s, src.stride);
+        let (c0, c1) = src.cdf.gather(src.cpu, _mm256_add_epi32(s, j));
+        let (d0, d1) = src
+            .cdf
+            .gather(src.cpu, _mm256_add_epi32(_mm256_add_epi32(s, src.m), at));
+        let mass = _mm256_mul_ps(
+            _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0)),
+            _mm256_cvtepi32_ps(_mm256_sub_epi32(d1, d0)),
+        );
+        _mm256_mul_ps(mass, scale)
+    }
+}
+
+/// A curve's inversion at `us` = u Q in its segment of CDF values
+/// (c0, c1) and positions (p0, p1), over `n` cells: as `Curve::sample`
+/// computes it, operation for operation.
+///
+/// # Safety
+/// AVX2.
+#[inline(always)]
+unsafe fn invert(
+    us: __m256,
+    (c0, c1): (__m256i, __m256i),
+    (p0, p1): (__m256, __m256),
+    n: f32,
+    (zero, one, half): (__m256, __m256, __m256),
+) -> __m256 {
+    // SAFETY: the caller's contract: AVX2.
+    unsafe {
+        let (c0, c1) = (_mm256_cvtepi32_ps(c0), _mm256_cvtepi32_ps(c1));
+        let ratio = _mm256_div_ps(_mm256_sub_ps(us, c0), _mm256_sub_ps(c1, c0));
+        let clamped = _mm256_min_ps(_mm256_max_ps(ratio, zero), one);
+        let frac = _mm256_blendv_ps(half, clamped, _mm256_cmp_ps::<_CMP_GT_OQ>(c1, c0));
+        let x = _mm256_div_ps(
+            _mm256_add_ps(p0, _mm256_mul_ps(frac, _mm256_sub_ps(p1, p0))),
+            _mm256_set1_ps(n),
+        );
+        _mm256_min_ps(x, _mm256_set1_ps(ONE_MINUS_EPSILON))
+    }
+}
