@@ -13,7 +13,7 @@
 //! segment a batch lands in is the one a draw at a time finds.
 //!
 //! The reads at indices held in registers stay `unsafe`
-//! ([`Pairs::gather`], [`lift`]); [`Pairs`] says up to which index a
+//! ([`Pairs::gather`], [`count_at_or_below`]); [`Pairs`] says up to which index a
 //! gather may read, and the callers derive their indices from what a
 //! decoder checked (offsets inside their arrays, a CDF ending at its
 //! largest value) and pad their arrays so that the last pair is readable.

@@ -5,11 +5,11 @@
 //! A draw is two table searches (the drawn slice, then the other slice's
 //! density at the point), then about a hundred operations of geometry
 //! (two sine/cosine pairs, a rotation, a reflection, a Jacobian). In the
-//! AVX2 build, for a sampler on one shared grid, the searches run 8 lanes
-//! at a time (`shared/lanes.rs`: binary lifting over the grid's narrow
-//! indices, each step one gather per lane group); otherwise, and for the
-//! few lanes a stage cannot finish (a draw landing on a vertex), they run
-//! one lane at a time. The sines and cosines of the chunk's
+//! AVX2 build the choice of slice and the searches run 8 lanes at a time
+//! (`shared/lanes.rs`: selects, then binary lifting over the grid's narrow
+//! indices, each step one gather per group of 8 lanes); in the portable
+//! build, or where an array is too large for 32-bit gather indices, they
+//! run one lane at a time. The sines and cosines of the chunk's
 //! angles are computed many at a time (`sin_cos_turns_each`, which reads
 //! its table from registers), and the rest of the geometry runs as one
 //! loop over the chunk's lanes ([`draw_at`], [`coordinates`], free of
@@ -24,8 +24,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{
-    coordinates, draw_at, is_positive_finite, pick_slice, Coordinates, Outgoing, OutgoingSampler,
-    Route, TablePoint, CELL_MARGIN,
+    coordinates, draw_at, is_positive_finite, Coordinates, Outgoing, OutgoingSampler, Route,
+    TablePoint, CELL_MARGIN,
 };
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{is_valid_outgoing, BxdfSample, Vec2, Vec3};
@@ -281,19 +281,14 @@ impl OutgoingSampler {
         // Each lane's slices and u; a cosine lane or one without a frame
         // keeps the stand-in (slice 0, u = 0), whose point and geometry
         // are computed and ignored.
-        let last_slice = self.slices.len() - 1;
-        let (mut drawn, mut other) = ([0i32; CHUNK], [0i32; CHUNK]);
-        let (mut w_drawn, mut u_x, mut u_y): (Lanes, Lanes, Lanes) =
-            ([1.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
+        let mut k = [0i32; CHUNK];
+        let (mut t, mut u_x, mut u_y): (Lanes, Lanes, Lanes) =
+            ([0.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
         let mut table_u: [Option<Vec2>; CHUNK] = [None; CHUNK];
         for l in 0..n {
             match frames.frame(l).map(|(_, o)| (o, self.route(u[l]))) {
                 Some((o, Route::Table(u))) => {
-                    let (d, b, ux, w) = pick_slice(&o, u);
-                    // The other slice past the last has weight 0: any
-                    // slice stands for it.
-                    (drawn[l], other[l]) = (d as i32, b.min(last_slice) as i32);
-                    (w_drawn[l], u_x[l], u_y[l]) = (w, ux, u.y);
+                    (k[l], t[l], u_x[l], u_y[l]) = (o.k as i32, o.t, u.x, u.y);
                     table_u[l] = Some(u);
                 }
                 Some((_, Route::Cosine(u))) => cosine_u[l] = Some(u),
@@ -319,9 +314,8 @@ impl OutgoingSampler {
             in_lanes = true;
             for at in (0..CHUNK).step_by(STAGE) {
                 let input = DrawInputs {
-                    drawn: &drawn[at..],
-                    other: &other[at..],
-                    w_drawn: &w_drawn[at..],
+                    k: &k[at..],
+                    t: &t[at..],
                     u_x: &u_x[at..],
                     u_y: &u_y[at..],
                 };

@@ -690,7 +690,7 @@ impl OutgoingSampler {
     /// completes.
     #[inline(always)]
     fn table_point(&self, o: &Outgoing, u: Vec2) -> TablePoint {
-        let (drawn, other, ux, w_drawn) = pick_slice(o, u);
+        let (drawn, other, ux, w_drawn) = pick_slice(o.k, o.t, u);
         let d = self.slices.sample(drawn, ux, u.y, self.cells, CELL_MARGIN);
         let (x, v) = d.p;
         let mut p_xv = w_drawn * self.slices.density(drawn, &d.cell);
@@ -719,13 +719,15 @@ impl OutgoingSampler {
     }
 }
 
-/// The slice a table draw with u comes from: slice k with probability
-/// 1 - t, slice k + 1 with t (u.x decides and is rescaled). Returns the
-/// drawn slice, the other, u.x rescaled to [0, 1) and the drawn slice's
-/// weight.
+/// The slice a table draw with u comes from, for wo between slices k and
+/// k + 1 at t: slice k with probability 1 - t, slice k + 1 with t (u.x
+/// decides and is rescaled). Returns the drawn slice, the other, u.x
+/// rescaled to [0, 1) and the drawn slice's weight. (The lanes of the
+/// batch paths make the same choice with selects rather than a branch,
+/// which a coin toss mispredicts on half the draws:
+/// `SharedSlices::sample_lanes`.)
 #[inline(always)]
-fn pick_slice(o: &Outgoing, u: Vec2) -> (usize, usize, f32, f32) {
-    let (k, t) = (o.k, o.t);
+fn pick_slice(k: usize, t: f32, u: Vec2) -> (usize, usize, f32, f32) {
     let (drawn, other, ux, w_drawn) = if u.x < 1.0 - t {
         (k, k + 1, u.x / (1.0 - t), 1.0 - t)
     } else {

@@ -488,18 +488,26 @@ fn lane_draws_and_densities_equal_single_ones() {
                 1 => acdf_core::ONE_MINUS_EPSILON,
                 _ => v,
             };
-            let drawn: Vec<i32> = (0..STAGE)
+            // Blends with t = 0, t = 1/2, t next to 1 and drawn ones, and
+            // u.x on the boundary 1 - t between the two slices.
+            let k: Vec<i32> = (0..STAGE)
                 .map(|l| (l as i32 + round as i32) % count)
                 .collect();
-            let other: Vec<i32> = (0..STAGE).map(|l| (l as i32 * 7 + 1) % count).collect();
-            let w: Vec<f32> = (0..STAGE)
+            let t: Vec<f32> = (0..STAGE)
                 .map(|l| match l % 5 {
-                    0 => 1.0,
-                    1 => 0.0,
+                    _ if k[l] + 1 == count => 0.0,
+                    0 => 0.0,
+                    1 => 0.5,
+                    2 => acdf_core::ONE_MINUS_EPSILON,
                     _ => next(),
                 })
                 .collect();
-            let u_x: Vec<f32> = (0..STAGE).map(|l| special(l, next())).collect();
+            let u_x: Vec<f32> = (0..STAGE)
+                .map(|l| match (round + l) % 11 {
+                    2 if t[l] > 0.0 => 1.0 - t[l],
+                    _ => special(l, next()),
+                })
+                .collect();
             let u_y: Vec<f32> = (0..STAGE).map(|l| special(l + 3, next())).collect();
             let (mut x, mut y, mut p, mut same) = (
                 vec![0.0; STAGE],
@@ -508,9 +516,8 @@ fn lane_draws_and_densities_equal_single_ones() {
                 vec![false; STAGE],
             );
             let input = DrawInputs {
-                drawn: &drawn,
-                other: &other,
-                w_drawn: &w,
+                k: &k,
+                t: &t,
                 u_x: &u_x,
                 u_y: &u_y,
             };
@@ -522,10 +529,12 @@ fn lane_draws_and_densities_equal_single_ones() {
             };
             assert!(g.sample_lanes(cpu, &input, *cells, CELL_MARGIN, out));
             for l in 0..STAGE {
-                let d = g.sample(drawn[l] as usize, u_x[l], u_y[l], *cells, CELL_MARGIN);
-                let mut want = w[l] * g.density(drawn[l] as usize, &d.cell);
-                if 1.0 - w[l] > 0.0 {
-                    want += (1.0 - w[l]) * g.density(other[l] as usize, &d.cell);
+                let u = Vec2::new(u_x[l], u_y[l]);
+                let (drawn, other, ux, w) = super::pick_slice(k[l] as usize, t[l], u);
+                let d = g.sample(drawn, ux, u.y, *cells, CELL_MARGIN);
+                let mut want = w * g.density(drawn, &d.cell);
+                if 1.0 - w > 0.0 {
+                    want += (1.0 - w) * g.density(other, &d.cell);
                 }
                 assert_eq!(
                     (bits(x[l]), bits(y[l])),
@@ -539,9 +548,6 @@ fn lane_draws_and_densities_equal_single_ones() {
                 );
             }
             // Densities: points in and out of the square, NaN among them.
-            let k: Vec<i32> = (0..STAGE)
-                .map(|l| (l as i32 + round as i32) % count)
-                .collect();
             let t: Vec<f32> = (0..STAGE)
                 .map(|l| {
                     if k[l] + 1 < count && l % 3 != 0 {

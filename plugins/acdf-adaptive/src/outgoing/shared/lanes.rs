@@ -22,13 +22,13 @@ use acdf_core::search::narrow::{count_at_or_below, first_step, Pairs};
 use acdf_core::ONE_MINUS_EPSILON;
 use std::arch::x86_64::*;
 
-/// What a stage of draws starts from, one entry per lane: the slice drawn
-/// from and the other slice of the blend (any valid slice where its weight
-/// is 0), the drawn slice's weight, and u (clamped to [0, 1)).
+/// What a stage of draws starts from, one entry per lane: the blend of
+/// wo, (1 - t) slice k + t slice k + 1, and u in [0, 1)^2, whose u.x
+/// also picks the slice drawn from as `pick_slice` does (slice k where
+/// u.x < 1 - t).
 pub struct DrawInputs<'a> {
-    pub drawn: &'a [i32],
-    pub other: &'a [i32],
-    pub w_drawn: &'a [f32],
+    pub k: &'a [i32],
+    pub t: &'a [f32],
     pub u_x: &'a [f32],
     pub u_y: &'a [f32],
 }
@@ -148,14 +148,35 @@ impl SharedSlices {
             let half = _mm256_set1_ps(0.5);
             let key_max = _mm256_set1_ps(u16::MAX as f32);
             let mut base = [zero_i; GROUPS];
+            let mut other = [zero_i; GROUPS];
+            let mut w_drawn = [zero; GROUPS];
             let mut key = [zero_i; GROUPS];
             let mut us_y = [zero; GROUPS];
             let mut us_x = [zero; GROUPS];
             for g in 0..GROUPS {
-                base[g] =
-                    _mm256_mullo_epi32(slice_index(&src, load_i(cpu, g, input.drawn)), stride);
+                // The slice drawn from, chosen by selects where one lane
+                // at a time would branch on a coin toss: slice k with u.x
+                // / (1 - t) where u.x < 1 - t, else slice k + 1 with
+                // (u.x - (1 - t)) / t, clamped to [0, 1) as `clamp_unit`.
+                let (k, t) = (load_i(cpu, g, input.k), load_f(cpu, g, input.t));
+                let u_x = load_f(cpu, g, input.u_x);
+                let w_first = _mm256_sub_ps(one_f, t);
+                let first = _mm256_cmp_ps::<_CMP_LT_OQ>(u_x, w_first);
+                let numerator = _mm256_blendv_ps(_mm256_sub_ps(u_x, w_first), u_x, first);
+                w_drawn[g] = _mm256_blendv_ps(t, w_first, first);
+                let u_x = _mm256_div_ps(numerator, w_drawn[g]);
+                let u_x = _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(u_x, zero),
+                    _mm256_min_ps(u_x, _mm256_set1_ps(ONE_MINUS_EPSILON)),
+                );
+                // `first` is -1 in a lane that draws from slice k.
+                let first = _mm256_castps_si256(first);
+                let drawn = _mm256_add_epi32(_mm256_add_epi32(k, one), first);
+                other[g] =
+                    _mm256_mullo_epi32(slice_index(&src, _mm256_sub_epi32(k, first)), stride);
+                base[g] = _mm256_mullo_epi32(slice_index(&src, drawn), stride);
                 us_y[g] = _mm256_mul_ps(load_f(cpu, g, input.u_y), qf);
-                us_x[g] = _mm256_mul_ps(load_f(cpu, g, input.u_x), qf);
+                us_x[g] = _mm256_mul_ps(u_x, qf);
                 key[g] = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(us_y[g], zero), key_max));
             }
             // The marginal: each lane's values 1..=m - 1.
@@ -225,8 +246,7 @@ impl SharedSlices {
                 let mass = _mm256_mul_ps(mass_y[g], _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0)));
                 let drawn = _mm256_mul_ps(mass, scale);
                 // The other slice at the same cell.
-                let other =
-                    _mm256_mullo_epi32(slice_index(&src, load_i(cpu, g, input.other)), stride);
+                let other = other[g];
                 let (o0, o1) = src.cdf.gather(cpu, _mm256_add_epi32(other, j[g]));
                 let (r0, r1) = src
                     .cdf
@@ -236,7 +256,7 @@ impl SharedSlices {
                     _mm256_cvtepi32_ps(_mm256_sub_epi32(r1, r0)),
                 );
                 let other_density = _mm256_mul_ps(other_mass, scale);
-                let w_drawn = load_f(cpu, g, input.w_drawn);
+                let w_drawn = w_drawn[g];
                 let w_other = _mm256_sub_ps(one_f, w_drawn);
                 let p = _mm256_mul_ps(w_drawn, drawn);
                 let with_other = _mm256_add_ps(p, _mm256_mul_ps(w_other, other_density));
