@@ -167,7 +167,8 @@ struct PointLanes {
     x: Lanes,
     v: Lanes,
     p_xv: Lanes,
-    same: [bool; CHUNK],
+    /// -1 where `TablePoint::same` holds, 0 elsewhere (a lane mask).
+    same: [i32; CHUNK],
 }
 
 /// The draws of a chunk in the shading frame, one array per quantity.
@@ -175,7 +176,9 @@ struct DrawLanes {
     wi_x: Lanes,
     wi_y: Lanes,
     wi_z: Lanes,
-    table: Lanes,
+    /// The density of the draw where `shortcut` holds: the table's mixed
+    /// with the cosine lobe's, as `finish_draw` mixes them.
+    pdf: Lanes,
     shortcut: [bool; CHUNK],
 }
 
@@ -299,7 +302,7 @@ impl OutgoingSampler {
             x: [0.0; CHUNK],
             v: [0.0; CHUNK],
             p_xv: [0.0; CHUNK],
-            same: [false; CHUNK],
+            same: [0; CHUNK],
         };
         // No closures here: a closure would not be compiled into the
         // caller's AVX2 code, and the intrinsics would become calls.
@@ -339,7 +342,7 @@ impl OutgoingSampler {
                 points.x[l] = point.x;
                 points.v[l] = point.v;
                 points.p_xv[l] = point.p_xv;
-                points.same[l] = point.same;
+                points.same[l] = -i32::from(point.same);
             }
         }
         // θ_h = (π/2) v² is v² quarter turns, as `HalfMap::angles` has it.
@@ -355,7 +358,7 @@ impl OutgoingSampler {
             wi_x: [0.0; CHUNK],
             wi_y: [0.0; CHUNK],
             wi_z: [0.0; CHUNK],
-            table: [0.0; CHUNK],
+            pdf: [0.0; CHUNK],
             shortcut: [false; CHUNK],
         };
         for l in 0..n {
@@ -364,14 +367,14 @@ impl OutgoingSampler {
                 x: points.x[l],
                 v: points.v[l],
                 p_xv: points.p_xv[l],
-                same: points.same[l],
+                same: points.same[l] != 0,
             };
             let theta = map.polar(point.v, || (sin_h[l], cos_h[l]));
             let d = draw_at(map, &o, wo, &point, (theta, (sin_p[l], cos_p[l])));
             draws.wi_x[l] = d.wi.x;
             draws.wi_y[l] = d.wi.y;
             draws.wi_z[l] = d.wi.z;
-            draws.table[l] = d.table;
+            draws.pdf[l] = acdf_tabulated::mix_with_cosine(self.cosine_fraction, d.table, d.wi);
             draws.shortcut[l] = d.shortcut;
         }
         for l in 0..n {
@@ -383,8 +386,14 @@ impl OutgoingSampler {
                 Some(u) => self.sample_cosine(&o, wo, u),
                 None => {
                     let wi = Vec3::new(draws.wi_x[l], draws.wi_y[l], draws.wi_z[l]);
-                    let table = draws.shortcut[l].then_some(draws.table[l]);
-                    self.finish_draw(&o, wo, wi, table)
+                    if draws.shortcut[l] {
+                        // `finish_draw` with the table's density, its
+                        // mixture computed in the loop above.
+                        let pdf = draws.pdf[l];
+                        ((wi.z > 0.0) & (pdf > 0.0)).then_some(BxdfSample { wi, pdf })
+                    } else {
+                        self.finish_draw(&o, wo, wi, None)
+                    }
                 }
             };
         }

@@ -513,7 +513,7 @@ fn lane_draws_and_densities_equal_single_ones() {
                 vec![0.0; STAGE],
                 vec![0.0; STAGE],
                 vec![0.0; STAGE],
-                vec![false; STAGE],
+                vec![0; STAGE],
             );
             let input = DrawInputs {
                 k: &k,
@@ -543,7 +543,7 @@ fn lane_draws_and_densities_equal_single_ones() {
                 );
                 assert_eq!(
                     (bits(p[l]), same[l]),
-                    (bits(want), d.same_around),
+                    (bits(want), -i32::from(d.same_around)),
                     "lane {l}"
                 );
             }

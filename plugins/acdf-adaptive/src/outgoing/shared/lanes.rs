@@ -34,12 +34,14 @@ pub struct DrawInputs<'a> {
 }
 
 /// What a stage of draws gives: the point (x, y), its blended density
-/// and whether every slice's density is the same over the box around it.
+/// and whether every slice's density is the same over the box around it
+/// (`same`: all bits set where it is, 0 elsewhere, as a vector compare
+/// leaves it).
 pub struct DrawnPoints<'a> {
     pub x: &'a mut [f32],
     pub y: &'a mut [f32],
     pub p: &'a mut [f32],
-    pub same: &'a mut [bool],
+    pub same: &'a mut [i32],
 }
 
 /// The arrays as the lanes read them; `None` when one is too short for a
@@ -80,6 +82,14 @@ fn store_f(_: Avx2, g: usize, v: __m256, out: &mut [f32]) {
     // SAFETY: the token proves the CPU has AVX2; the store writes the
     // eight floats of `out`.
     unsafe { _mm256_storeu_ps(out.as_mut_ptr(), v) }
+}
+
+/// [`store_f`] of integers.
+#[inline(always)]
+fn store_i(_: Avx2, g: usize, v: __m256i, out: &mut [i32]) {
+    let out = &mut out[8 * g..8 * g + 8];
+    // SAFETY: as `store_f`.
+    unsafe { _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, v) }
 }
 
 impl SharedSlices {
@@ -268,10 +278,7 @@ impl SharedSlices {
                 store_f(cpu, g, x, out.x);
                 store_f(cpu, g, y[g], out.y);
                 store_f(cpu, g, p, out.p);
-                let mask = _mm256_movemask_ps(same);
-                for l in 0..8 {
-                    out.same[8 * g + l] = mask >> l & 1 == 1;
-                }
+                store_i(cpu, g, _mm256_castps_si256(same), out.same);
             }
         }
         true
