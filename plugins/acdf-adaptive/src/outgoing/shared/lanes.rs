@@ -114,13 +114,16 @@ impl SharedSlices {
         })
     }
 
-    /// [`sample`](Self::sample) for the [`STAGE`](acdf_core::search::lanes::STAGE) lanes of `input`, with
-    /// the blended density `w_drawn` d_drawn + (1 - w_drawn) d_other of
-    /// the drawn cell (the other term only where its weight is positive).
+    /// The table draws of the outgoing sampler (its `table_point`) for
+    /// the [`STAGE`](acdf_core::search::lanes::STAGE) lanes of `input`: the
+    /// slice picked from the blend, [`sample`](Self::sample) of it, and
+    /// the blended density w_drawn d_drawn + (1 - w_drawn) d_other of the
+    /// drawn cell (the other term only where its weight is positive).
     /// Returns false, writing nothing, if the arrays cannot be read by
     /// lanes. Slice indices are clamped into [0, [`len`](Self::len)), and
     /// the slices must be valid ([`validate`](Self::validate)). Panics if
-    /// a slice of `input` or `out` holds fewer than [`STAGE`](acdf_core::search::lanes::STAGE) lanes.
+    /// a slice of `input` or `out` holds fewer than
+    /// [`STAGE`](acdf_core::search::lanes::STAGE) lanes.
     #[inline(always)]
     pub fn sample_lanes(
         &self,
