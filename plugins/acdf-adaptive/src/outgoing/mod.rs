@@ -350,11 +350,15 @@ impl ThetaOBlend {
     #[inline(always)]
     fn at(&self, z: f32) -> (usize, f32) {
         let key = -z;
-        let k = self
-            .negative_inner_cos
-            .iter()
-            .map(|&b| (b <= key) as usize)
-            .sum::<usize>();
+        // Eight counts side by side, one per lane of a vector compare,
+        // added up at the end.
+        let mut counts = [0u32; 8];
+        for chunk in self.negative_inner_cos.chunks_exact(8) {
+            for (count, &b) in counts.iter_mut().zip(chunk) {
+                *count += u32::from(b <= key);
+            }
+        }
+        let k = counts.iter().sum::<u32>() as usize;
         match self.steps.get(k) {
             Some(&(c, inverse)) => {
                 let t = (c - z) * inverse;

@@ -285,6 +285,32 @@ fn each_forms_equal_single_calls() {
     assert_eq!(short[2].map(|d| d.pdf), Some(-1.0));
 }
 
+/// The blend's slice k is the number of inner breakpoints whose cosine is
+/// at or above cos θ_o, as a plain search counts it, for 1 to 130
+/// breakpoints (the counts run 8 at a time over padded lists), at the
+/// breakpoints themselves and between them.
+#[test]
+fn blend_slice_is_the_plain_count() {
+    for count in [1usize, 2, 3, 9, 10, 17, 64, 130] {
+        let u: Vec<f32> = (0..count)
+            .map(|i| i as f32 / (count - 1).max(1) as f32)
+            .collect();
+        let blend = ThetaOBlend::new(&u);
+        let cos = cos_theta_o(&u);
+        let inner = &cos[1..cos.len().saturating_sub(1).max(1)];
+        let mut zs: Vec<f32> = cos.clone();
+        zs.extend((0..=200).map(|i| i as f32 / 200.0));
+        for z in zs {
+            let want = if count < 2 {
+                0
+            } else {
+                inner.iter().filter(|&&c| c >= z).count()
+            };
+            assert_eq!(blend.at(z).0, want, "{count} breakpoints, z = {z}");
+        }
+    }
+}
+
 /// The blend weight is linear in cos θ_o between two breakpoints, 0 and 1
 /// at their ends, and the blended weights of the slices are continuous
 /// across a breakpoint; the normal, the grazing end, NaN and a lone
