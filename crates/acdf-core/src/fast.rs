@@ -244,6 +244,7 @@ pub fn sin_cos_quarter_turns_each(quarter_turns: &[f32], sin: &mut [f32], cos: &
 /// [`sin_cos_steps`] of `scale · angles[i]` for every i.
 fn sin_cos_steps_each(scale: f32, angles: &[f32], sin: &mut [f32], cos: &mut [f32]) {
     let n = angles.len().min(sin.len()).min(cos.len());
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
     let mut done = 0;
     #[cfg(target_arch = "x86_64")]
     if let Some(cpu) = crate::cpu::avx2() {

@@ -25,7 +25,7 @@
 
 use super::{
     coordinates, draw_at, is_positive_finite, Coordinates, Outgoing, OutgoingSampler, Route,
-    TablePoint, CELL_MARGIN,
+    TablePoint,
 };
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{is_valid_outgoing, BxdfSample, Vec2, Vec3};
@@ -328,9 +328,9 @@ impl OutgoingSampler {
                     p: &mut points.p_xv[at..],
                     same: &mut points.same[at..],
                 };
-                in_lanes &= self
-                    .slices
-                    .sample_lanes(cpu, &input, self.cells, CELL_MARGIN, out);
+                in_lanes &=
+                    self.slices
+                        .sample_lanes(cpu, &input, self.cells, super::CELL_MARGIN, out);
             }
         }
         if !in_lanes {
@@ -425,6 +425,7 @@ impl OutgoingSampler {
             lanes.defined[l] = c.defined;
             (k[l], t[l]) = (o.k as i32, o.t);
         }
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut blended: Lanes = [0.0; CHUNK];
         // No closures, as in `sample_chunk`.
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
