@@ -23,10 +23,7 @@
 // number; that is the layout the vectoriser wants, not an iterator chain.
 #![allow(clippy::needless_range_loop)]
 
-use super::{
-    coordinates, draw_at, is_positive_finite, Coordinates, Outgoing, OutgoingSampler, Route,
-    TablePoint,
-};
+use super::{coordinates, draw_at, Coordinates, Outgoing, OutgoingSampler, Route, TablePoint};
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
 use acdf_core::{is_valid_outgoing, BxdfSample, Vec2, Vec3};
 
@@ -177,7 +174,7 @@ struct DrawLanes {
     wi_y: Lanes,
     wi_z: Lanes,
     /// The density of the draw where `shortcut` holds: the table's mixed
-    /// with the cosine lobe's, as `finish_draw` mixes them.
+    /// with the cosine lobe's, as `sample_table` mixes them.
     pdf: Lanes,
     shortcut: [bool; CHUNK],
 }
@@ -189,6 +186,20 @@ struct CoordinateLanes {
     sin_h: Lanes,
     wo_h: Lanes,
     defined: [bool; CHUNK],
+}
+
+impl CoordinateLanes {
+    /// Lane l's coordinates.
+    #[inline(always)]
+    fn at(&self, l: usize) -> Coordinates {
+        Coordinates {
+            x: self.x[l],
+            v: self.v[l],
+            sin_h: self.sin_h[l],
+            wo_h: self.wo_h[l],
+            defined: self.defined[l],
+        }
+    }
 }
 
 impl OutgoingSampler {
@@ -386,14 +397,8 @@ impl OutgoingSampler {
                 Some(u) => self.sample_cosine(&o, wo, u),
                 None => {
                     let wi = Vec3::new(draws.wi_x[l], draws.wi_y[l], draws.wi_z[l]);
-                    if draws.shortcut[l] {
-                        // `finish_draw` with the table's density, its
-                        // mixture computed in the loop above.
-                        let pdf = draws.pdf[l];
-                        ((wi.z > 0.0) & (pdf > 0.0)).then_some(BxdfSample { wi, pdf })
-                    } else {
-                        self.finish_draw(&o, wo, wi, None)
-                    }
+                    let pdf = draws.shortcut[l].then_some(draws.pdf[l]);
+                    self.finish_draw(&o, wo, wi, pdf)
                 }
             };
         }
@@ -450,19 +455,11 @@ impl OutgoingSampler {
         }
         if in_lanes {
             // What `pdf_with` does with each lane's blended density, as one
-            // loop free of branches, which compiles to SIMD: the same
-            // operations, with every lane's alternatives computed and the
-            // one `pdf_with` takes selected.
+            // loop free of branches, which compiles to SIMD.
             let a = self.cosine_fraction;
             for l in 0..n {
                 let w = wi[l];
-                let jacobian = map.jacobian(lanes.v[l], lanes.sin_h[l]);
-                let table = blended[l] / (jacobian * 4.0 * lanes.wo_h[l]);
-                let table = if is_positive_finite(table) & (a < 1.0) & lanes.defined[l] {
-                    table
-                } else {
-                    0.0
-                };
+                let table = self.table_density(blended[l], &lanes.at(l));
                 let p = acdf_tabulated::mix_with_cosine(a, table, w);
                 let defined = frames.valid(l)
                     & w.x.is_finite()
@@ -475,16 +472,7 @@ impl OutgoingSampler {
         }
         for l in 0..n {
             out[l] = match frames.frame(l) {
-                Some((_, o)) => {
-                    let c = Coordinates {
-                        x: lanes.x[l],
-                        v: lanes.v[l],
-                        sin_h: lanes.sin_h[l],
-                        wo_h: lanes.wo_h[l],
-                        defined: lanes.defined[l],
-                    };
-                    self.pdf_with(&o, wi[l], &c)
-                }
+                Some((_, o)) => self.pdf_with(&o, wi[l], &lanes.at(l)),
                 None => 0.0,
             };
         }

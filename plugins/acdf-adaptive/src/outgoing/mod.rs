@@ -676,13 +676,16 @@ impl OutgoingSampler {
         p
     }
 
-    /// The table density per solid angle of defined coordinates `c`
-    /// whose [`blended_density`](Self::blended_density) is `p`.
+    /// The table's density per solid angle at coordinates `c` whose
+    /// blended density is `blended` (any value where `c` is not defined or
+    /// the table is never drawn from): 0 there, and 0 unless positive and
+    /// finite. Written without branches, so that the batch path's loop
+    /// over a chunk compiles to SIMD.
     #[inline(always)]
-    fn table_pdf_at(&self, p: f32, c: &Coordinates) -> f32 {
-        let p = p / (self.map.jacobian(c.v, c.sin_h) * 4.0 * c.wo_h);
-        if is_positive_finite(p) {
-            p
+    fn table_density(&self, blended: f32, c: &Coordinates) -> f32 {
+        let table = blended / (self.map.jacobian(c.v, c.sin_h) * 4.0 * c.wo_h);
+        if is_positive_finite(table) & (self.cosine_fraction < 1.0) & c.defined {
+            table
         } else {
             0.0
         }
@@ -711,15 +714,17 @@ impl OutgoingSampler {
         }
     }
 
-    /// A table draw for a valid wo: wi, and the table density when the
-    /// drawn point certainly has the density `pdf` would find for wi (see
-    /// [`CELL_MARGIN`]), `None` when it must be recomputed.
+    /// A table draw for a valid wo: wi, and its density (the table's
+    /// mixed with the cosine lobe's) when the drawn point certainly has the
+    /// table density `pdf` would find for wi (see [`CELL_MARGIN`]), `None`
+    /// when it must be recomputed.
     #[inline(always)]
     fn sample_table(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> (Vec3, Option<f32>) {
         let point = self.table_point(o, u);
         let angles = (self.map.angles(point.v), sin_cos_turns(point.x));
         let d = draw_at(self.map, o, wo, &point, angles);
-        (d.wi, d.shortcut.then_some(d.table))
+        let pdf = acdf_tabulated::mix_with_cosine(self.cosine_fraction, d.table, d.wi);
+        (d.wi, d.shortcut.then_some(pdf))
     }
 }
 
@@ -930,8 +935,8 @@ impl OutgoingSampler {
         match self.route(u) {
             Route::Cosine(u) => self.sample_cosine(o, wo, u),
             Route::Table(u) => {
-                let (wi, table) = self.sample_table(o, wo, u);
-                self.finish_draw(o, wo, wi, table)
+                let (wi, pdf) = self.sample_table(o, wo, u);
+                self.finish_draw(o, wo, wi, pdf)
             }
         }
     }
@@ -960,21 +965,22 @@ impl OutgoingSampler {
         self.finish_draw(o, wo, square_to_cosine_hemisphere(u), None)
     }
 
-    /// The draw of wi, or none below the horizon; its density from the
-    /// drawn table point where `table` has it, from `pdf` otherwise.
+    /// The draw of wi, or none below the horizon; its density `pdf` where
+    /// the drawn table point gave it, from [`pdf_in`](Self::pdf_in)
+    /// otherwise.
     #[inline(always)]
     fn finish_draw(
         &self,
         o: &Outgoing,
         wo: Vec3,
         wi: Vec3,
-        table: Option<f32>,
+        pdf: Option<f32>,
     ) -> Option<BxdfSample> {
         if !(wi.z > 0.0) {
             return None;
         }
-        let pdf = match table {
-            Some(table) => acdf_tabulated::mix_with_cosine(self.cosine_fraction, table, wi),
+        let pdf = match pdf {
+            Some(pdf) => pdf,
             None => self.pdf_in(o, wo, wi),
         };
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
@@ -1009,12 +1015,8 @@ impl OutgoingSampler {
             return 0.0;
         }
         let a = self.cosine_fraction;
-        let table = if a < 1.0 {
-            if c.defined {
-                self.table_pdf_at(self.blended_density(o, c), c)
-            } else {
-                0.0
-            }
+        let table = if c.defined && a < 1.0 {
+            self.table_density(self.blended_density(o, c), c)
         } else {
             0.0
         };

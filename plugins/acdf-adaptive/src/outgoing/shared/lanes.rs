@@ -152,14 +152,12 @@ impl SharedSlices {
         unsafe {
             let stride = src.stride;
             let one = _mm256_set1_epi32(1);
-            let two = _mm256_set1_epi32(2);
             let zero_i = _mm256_setzero_si256();
             let m_v = src.m;
             let qf = _mm256_set1_ps(QF);
             let zero = _mm256_setzero_ps();
             let one_f = _mm256_set1_ps(1.0);
             let half = _mm256_set1_ps(0.5);
-            let key_max = _mm256_set1_ps(u16::MAX as f32);
             let mut base = [zero_i; GROUPS];
             let mut other = [zero_i; GROUPS];
             let mut w_drawn = [zero; GROUPS];
@@ -185,12 +183,11 @@ impl SharedSlices {
                 // `first` is -1 in a lane that draws from slice k.
                 let first = _mm256_castps_si256(first);
                 let drawn = _mm256_add_epi32(_mm256_add_epi32(k, one), first);
-                other[g] =
-                    _mm256_mullo_epi32(slice_index(&src, _mm256_sub_epi32(k, first)), stride);
+                other[g] = slice_index(&src, _mm256_sub_epi32(k, first));
                 base[g] = _mm256_mullo_epi32(slice_index(&src, drawn), stride);
                 us_y[g] = _mm256_mul_ps(load_f(cpu, g, input.u_y), qf);
                 us_x[g] = _mm256_mul_ps(u_x, qf);
-                key[g] = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(us_y[g], zero), key_max));
+                key[g] = search_key(us_y[g], u16::MAX);
             }
             // The marginal: each lane's values 1..=m - 1.
             let mut from = [zero_i; GROUPS];
@@ -217,15 +214,10 @@ impl SharedSlices {
                 y[g] = invert(us_y[g], (c0, c1), (p0, p1), n_y, (zero, one_f, half));
                 segment_y[g] = (p0, p1);
                 mass_y[g] = _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0));
-                let (at, end) = src.grid.gather(cpu, _mm256_add_epi32(m_v, j[g]));
-                let length = _mm256_sub_epi32(end, at);
-                let has = _mm256_cmpgt_epi32(length, _mm256_set1_epi32(1));
-                a[g] = _mm256_and_si256(at, has);
-                last[g] = _mm256_and_si256(_mm256_sub_epi32(length, two), has);
-                let first = _mm256_add_epi32(_mm256_add_epi32(base[g], m_v), a[g]);
-                from[g] = _mm256_add_epi32(first, _mm256_and_si256(one, has));
-                let key_x = _mm256_min_ps(_mm256_max_ps(us_x[g], zero), key_max);
-                key[g] = _mm256_cvttps_epi32(key_x);
+                let c = conditional_of(&src, j[g]);
+                (a[g], last[g]) = (c.first, c.last);
+                from[g] = _mm256_add_epi32(_mm256_add_epi32(base[g], m_v), c.inner);
+                key[g] = search_key(us_x[g], u16::MAX);
             }
             // The conditional of each lane's marginal segment.
             let i = count_at_or_below(
@@ -259,16 +251,7 @@ impl SharedSlices {
                 let mass = _mm256_mul_ps(mass_y[g], _mm256_cvtepi32_ps(_mm256_sub_epi32(c1, c0)));
                 let drawn = _mm256_mul_ps(mass, scale);
                 // The other slice at the same cell.
-                let other = other[g];
-                let (o0, o1) = src.cdf.gather(cpu, _mm256_add_epi32(other, j[g]));
-                let (r0, r1) = src
-                    .cdf
-                    .gather(cpu, _mm256_add_epi32(_mm256_add_epi32(other, m_v), at));
-                let other_mass = _mm256_mul_ps(
-                    _mm256_cvtepi32_ps(_mm256_sub_epi32(o1, o0)),
-                    _mm256_cvtepi32_ps(_mm256_sub_epi32(r1, r0)),
-                );
-                let other_density = _mm256_mul_ps(other_mass, scale);
+                let other_density = density(&src, other[g], j[g], at, scale);
                 let w_drawn = w_drawn[g];
                 let w_other = _mm256_sub_ps(one_f, w_drawn);
                 let p = _mm256_mul_ps(w_drawn, drawn);
@@ -325,16 +308,15 @@ impl SharedSlices {
         // clamped into [0, count).
         unsafe {
             let one = _mm256_set1_epi32(1);
-            let two = _mm256_set1_epi32(2);
             let zero_i = _mm256_setzero_si256();
-            let m_v = src.m;
             let zero = _mm256_setzero_ps();
             let one_f = _mm256_set1_ps(1.0);
             let mut key = [zero_i; GROUPS];
             for g in 0..GROUPS {
-                let ty = _mm256_mul_ps(load_f(cpu, g, y), _mm256_set1_ps(n_y));
-                let ty = _mm256_min_ps(_mm256_max_ps(ty, zero), _mm256_set1_ps(u16::MAX as f32));
-                key[g] = _mm256_cvttps_epi32(ty);
+                key[g] = search_key(
+                    _mm256_mul_ps(load_f(cpu, g, y), _mm256_set1_ps(n_y)),
+                    u16::MAX,
+                );
             }
             let j = count_at_or_below(
                 cpu,
@@ -344,18 +326,13 @@ impl SharedSlices {
                 &key,
                 first_step(self.m - 1),
             );
-            let mut has = [zero_i; GROUPS];
-            let mut from = [zero_i; GROUPS];
-            let mut last = [zero_i; GROUPS];
+            let (mut a, mut has) = ([zero_i; GROUPS], [zero_i; GROUPS]);
+            let (mut from, mut last) = ([zero_i; GROUPS], [zero_i; GROUPS]);
             for g in 0..GROUPS {
-                let (a, b) = src.grid.gather(cpu, _mm256_add_epi32(m_v, j[g]));
-                let length = _mm256_sub_epi32(b, a);
-                has[g] = _mm256_cmpgt_epi32(length, one);
-                from[g] = _mm256_and_si256(_mm256_add_epi32(a, one), has[g]);
-                last[g] = _mm256_and_si256(_mm256_sub_epi32(length, two), has[g]);
+                let c = conditional_of(&src, j[g]);
+                (a[g], from[g], last[g], has[g]) = (c.first, c.inner, c.last, c.has);
                 let tx = _mm256_mul_ps(load_f(cpu, g, x), _mm256_set1_ps(n_x));
-                let tx = _mm256_min_ps(_mm256_max_ps(tx, zero), _mm256_set1_ps(u8::MAX as f32));
-                key[g] = _mm256_cvttps_epi32(tx);
+                key[g] = search_key(tx, u8::MAX.into());
             }
             let i = count_at_or_below(
                 cpu,
@@ -368,11 +345,7 @@ impl SharedSlices {
             let nn = _mm256_set1_ps(n_x * n_y);
             let qq = _mm256_set1_ps(QF * QF);
             for g in 0..GROUPS {
-                // The conditional's first vertex is from - 1 where it has one.
-                let at = _mm256_and_si256(
-                    _mm256_add_epi32(_mm256_sub_epi32(from[g], one), i[g]),
-                    has[g],
-                );
+                let at = _mm256_add_epi32(a[g], i[g]);
                 let (p0, p1) = src.grid.gather(cpu, j[g]);
                 let (q0, q1) = src.positions.gather(cpu, at);
                 let width = _mm256_mul_ps(
@@ -410,6 +383,61 @@ impl SharedSlices {
 unsafe fn slice_index(src: &Sources<'_>, s: __m256i) -> __m256i {
     // SAFETY: the caller's contract: AVX2.
     unsafe { _mm256_max_epi32(_mm256_min_epi32(s, src.last_slice), _mm256_setzero_si256()) }
+}
+
+/// The conditional of a marginal segment on the grid, as the lanes
+/// search it ([`conditional_of`]).
+struct Conditional {
+    /// The index of its first vertex among the conditional positions.
+    first: __m256i,
+    /// `first + 1`, the first inner vertex, where the search starts.
+    inner: __m256i,
+    /// The last index the search may count to: its vertices less 2.
+    last: __m256i,
+    /// All bits set where it has at least two vertices (mass).
+    has: __m256i,
+}
+
+/// The conditional of marginal segment j. A segment whose conditional
+/// has fewer than two vertices gives 0 for `first`, `inner` and `last`,
+/// so that its lanes read position 0 and count nothing.
+///
+/// # Safety
+/// AVX2, and m + j + 1 inside the grid.
+#[inline(always)]
+unsafe fn conditional_of(src: &Sources<'_>, j: __m256i) -> Conditional {
+    // SAFETY: the caller's contract.
+    unsafe {
+        let (first, end) = src.grid.gather(src.cpu, _mm256_add_epi32(src.m, j));
+        let length = _mm256_sub_epi32(end, first);
+        let one = _mm256_set1_epi32(1);
+        let has = _mm256_cmpgt_epi32(length, one);
+        let first = _mm256_and_si256(first, has);
+        Conditional {
+            first,
+            inner: _mm256_add_epi32(first, _mm256_and_si256(one, has)),
+            last: _mm256_and_si256(_mm256_sub_epi32(length, _mm256_set1_epi32(2)), has),
+            has,
+        }
+    }
+}
+
+/// The integer key of a search among quantised values up to `top`: `v`
+/// (already scaled to them) clamped to [0, top] and truncated, as the
+/// scalar searches' keys are.
+///
+/// # Safety
+/// AVX2.
+#[inline(always)]
+unsafe fn search_key(v: __m256, top: u16) -> __m256i {
+    // SAFETY: the caller's contract: AVX2.
+    unsafe {
+        let clamped = _mm256_min_ps(
+            _mm256_max_ps(v, _mm256_setzero_ps()),
+            _mm256_set1_ps(f32::from(top)),
+        );
+        _mm256_cvttps_epi32(clamped)
+    }
 }
 
 /// Whether [t - margin, t + margin] lies inside the segment (p0, p1), as
