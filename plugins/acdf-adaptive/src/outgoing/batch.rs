@@ -114,11 +114,11 @@ impl EachFrame {
 
     /// The frames of the chunk's directions `wo`.
     #[inline(always)]
-    fn fill(&mut self, sampler: &OutgoingSampler, wo: &[Vec3]) {
+    fn fill(&mut self, simd: Simd, sampler: &OutgoingSampler, wo: &[Vec3]) {
         for (l, &w) in wo.iter().enumerate().take(CHUNK) {
             let valid = is_valid_outgoing(w);
             let (w, o) = if valid {
-                (w, sampler.outgoing(w))
+                (w, sampler.outgoing(simd, w))
             } else {
                 (Vec3::Z, Outgoing::NORMAL)
             };
@@ -218,7 +218,7 @@ impl OutgoingSampler {
             out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
             return;
         }
-        let frame = OneFrame(wo, self.outgoing(wo));
+        let frame = OneFrame(wo, self.outgoing(simd, wo));
         for (uc, oc) in u.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
             self.sample_chunk(simd, &frame, uc, oc);
         }
@@ -241,7 +241,7 @@ impl OutgoingSampler {
             .zip(u.chunks(CHUNK))
             .zip(out.chunks_mut(CHUNK))
         {
-            frames.fill(self, wc);
+            frames.fill(simd, self, wc);
             let n = wc.len().min(uc.len()).min(oc.len());
             self.sample_chunk(simd, &frames, &uc[..n], &mut oc[..n]);
         }
@@ -255,7 +255,7 @@ impl OutgoingSampler {
             out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
             return;
         }
-        let frame = OneFrame(wo, self.outgoing(wo));
+        let frame = OneFrame(wo, self.outgoing(simd, wo));
         for (wc, oc) in wi.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
             self.pdf_chunk(simd, &frame, wc, oc);
         }
@@ -271,7 +271,7 @@ impl OutgoingSampler {
             .zip(wi.chunks(CHUNK))
             .zip(out.chunks_mut(CHUNK))
         {
-            frames.fill(self, wc);
+            frames.fill(simd, self, wc);
             let n = wc.len().min(ic.len()).min(oc.len());
             self.pdf_chunk(simd, &frames, &ic[..n], &mut oc[..n]);
         }

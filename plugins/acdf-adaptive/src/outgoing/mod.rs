@@ -115,6 +115,7 @@ use acdf_core::{
 };
 use acdf_tabulated::tabulate::{fill_support, HalfMap, GRAZING_COS};
 use acdf_tabulated::{tabulate_for, Resolution};
+use batch::Simd;
 use rayon::prelude::*;
 use std::f32::consts::{FRAC_PI_2, TAU};
 use std::sync::Arc;
@@ -346,19 +347,34 @@ impl ThetaOBlend {
     /// (k, t) for cos θ_o = z in [0, 1]: k the number of inner breakpoints
     /// whose cosine is at or above z (a count with no data-dependent
     /// branch), t = (c_k - z) / (c_k - c_{k+1}) clamped to [0, 1]. A single
-    /// breakpoint gives (0, 0); NaN gives (0, 0).
+    /// breakpoint gives (0, 0); NaN gives (0, 0). With the AVX2 token the
+    /// count is one mask per eight breakpoints
+    /// ([`count_ascending_at_or_below`](acdf_core::search::lanes::count_ascending_at_or_below)),
+    /// with no sum across lanes at the end: k heads the chain of a per-call
+    /// `sample`, whose first table search waits for it. Both count the
+    /// same, since the list ascends.
     #[inline(always)]
-    fn at(&self, z: f32) -> (usize, f32) {
+    fn at(&self, simd: Simd, z: f32) -> (usize, f32) {
         let key = -z;
-        // Eight counts side by side, one per lane of a vector compare,
-        // added up at the end.
-        let mut counts = [0u32; 8];
-        for chunk in self.negative_inner_cos.chunks_exact(8) {
-            for (count, &b) in counts.iter_mut().zip(chunk) {
-                *count += u32::from(b <= key);
+        let k = match simd {
+            #[cfg(target_arch = "x86_64")]
+            Some(cpu) => acdf_core::search::lanes::count_ascending_at_or_below(
+                cpu,
+                &self.negative_inner_cos,
+                key,
+            ),
+            _ => {
+                // Eight counts side by side, one per lane of a vector
+                // compare, added up at the end.
+                let mut counts = [0u32; 8];
+                for chunk in self.negative_inner_cos.chunks_exact(8) {
+                    for (count, &b) in counts.iter_mut().zip(chunk) {
+                        *count += u32::from(b <= key);
+                    }
+                }
+                counts.iter().sum::<u32>() as usize
             }
-        }
-        let k = counts.iter().sum::<u32>() as usize;
+        };
         match self.steps.get(k) {
             Some(&(c, inverse)) => {
                 let t = (c - z) * inverse;
@@ -643,14 +659,14 @@ impl OutgoingSampler {
     /// (φ_o = 0 on the pole). The batch forms compute it once for all their
     /// draws.
     #[inline(always)]
-    fn outgoing(&self, wo: Vec3) -> Outgoing {
+    fn outgoing(&self, simd: Simd, wo: Vec3) -> Outgoing {
         let s = sin_theta(wo);
         let rotation = if s > 0.0 {
             Vec2::new(wo.x, wo.y) / s
         } else {
             Vec2::X
         };
-        let (k, t) = self.blend.at(wo.z);
+        let (k, t) = self.blend.at(simd, wo.z);
         Outgoing {
             k,
             t,
@@ -920,11 +936,11 @@ const CELL_MARGIN: (f32, f32) = (1.0 / 32768.0, 1.0 / 65536.0);
 impl OutgoingSampler {
     /// [`BxdfSampler::sample`] itself.
     #[inline(always)]
-    fn sample_one(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+    fn sample_one(&self, simd: Simd, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
         if !is_valid_outgoing(wo) {
             return None;
         }
-        self.sample_in(&self.outgoing(wo), wo, u)
+        self.sample_in(&self.outgoing(simd, wo), wo, u)
     }
 
     /// With probability a a cosine draw, otherwise a table draw from the
@@ -988,11 +1004,11 @@ impl OutgoingSampler {
 
     /// [`BxdfSampler::pdf`] itself.
     #[inline(always)]
-    fn pdf_one(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf_one(&self, simd: Simd, wo: Vec3, wi: Vec3) -> f32 {
         if !is_valid_outgoing(wo) {
             return 0.0;
         }
-        self.pdf_in(&self.outgoing(wo), wo, wi)
+        self.pdf_in(&self.outgoing(simd, wo), wo, wi)
     }
 
     /// The density at wi for a valid wo whose [`Outgoing`] is `o`.
@@ -1023,19 +1039,63 @@ impl OutgoingSampler {
         acdf_tabulated::mix_with_cosine(a, table, wi)
     }
 
-    /// [`sample_one`](Self::sample_one) compiled for AVX2 (the same IEEE
-    /// operations; the compiler may use wider vectors for the counts).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn sample_avx2(&self, _: acdf_core::cpu::Avx2, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        self.sample_one(wo, u)
+    /// [`sample_one`](Self::sample_one) for CPUs without AVX2, out of line
+    /// so that `sample` itself stays a feature test and a call, which the
+    /// caller inlines.
+    #[inline(never)]
+    fn sample_portable(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        self.sample_one(None, wo, u)
     }
 
-    /// [`pdf_one`](Self::pdf_one) compiled for AVX2.
+    /// [`pdf_one`](Self::pdf_one) for CPUs without AVX2, out of line (see
+    /// [`sample_portable`](Self::sample_portable)).
+    #[inline(never)]
+    fn pdf_portable(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.pdf_one(None, wo, wi)
+    }
+
+    /// [`sample_one`](Self::sample_one) compiled for AVX2 (the same IEEE
+    /// operations; the blend's count runs as masks of eight compares).
+    ///
+    /// wo and u arrive as five `f32` in registers, as in
+    /// `acdf_tabulated`'s samplers: passed as `Vec3` and `Vec2` they go
+    /// through memory, and a load that spans two of the caller's stores
+    /// waits for them to retire at the head of the call's chain.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn pdf_avx2(&self, _: acdf_core::cpu::Avx2, wo: Vec3, wi: Vec3) -> f32 {
-        self.pdf_one(wo, wi)
+    fn sample_avx2(
+        &self,
+        cpu: acdf_core::cpu::Avx2,
+        wo_x: f32,
+        wo_y: f32,
+        wo_z: f32,
+        u_x: f32,
+        u_y: f32,
+    ) -> Option<BxdfSample> {
+        self.sample_one(Some(cpu), Vec3::new(wo_x, wo_y, wo_z), Vec2::new(u_x, u_y))
+    }
+
+    /// [`pdf_one`](Self::pdf_one) compiled for AVX2, wo and wi in
+    /// registers (see [`sample_avx2`](Self::sample_avx2)).
+    // The six coordinates travel in registers, beside the token.
+    #[allow(clippy::too_many_arguments)]
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn pdf_avx2(
+        &self,
+        cpu: acdf_core::cpu::Avx2,
+        wo_x: f32,
+        wo_y: f32,
+        wo_z: f32,
+        wi_x: f32,
+        wi_y: f32,
+        wi_z: f32,
+    ) -> f32 {
+        self.pdf_one(
+            Some(cpu),
+            Vec3::new(wo_x, wo_y, wo_z),
+            Vec3::new(wi_x, wi_y, wi_z),
+        )
     }
 
     /// [`sample_batch_one`](Self::sample_batch_one) compiled for AVX2
@@ -1094,9 +1154,9 @@ impl BxdfSampler for OutgoingSampler {
         if let Some(cpu) = acdf_core::cpu::avx2() {
             // SAFETY: the token proves the CPU has AVX2 and FMA, the one
             // requirement of the function's target features.
-            return unsafe { self.sample_avx2(cpu, wo, u) };
+            return unsafe { self.sample_avx2(cpu, wo.x, wo.y, wo.z, u.x, u.y) };
         }
-        self.sample_one(wo, u)
+        self.sample_portable(wo, u)
     }
 
     /// (1 - a) times the blended table density plus a cos θ_i / π; 0 for an
@@ -1105,9 +1165,9 @@ impl BxdfSampler for OutgoingSampler {
         #[cfg(target_arch = "x86_64")]
         if let Some(cpu) = acdf_core::cpu::avx2() {
             // SAFETY: as for `sample`.
-            return unsafe { self.pdf_avx2(cpu, wo, wi) };
+            return unsafe { self.pdf_avx2(cpu, wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
         }
-        self.pdf_one(wo, wi)
+        self.pdf_portable(wo, wi)
     }
 
     /// `sample` for every u, with the blend and rotation of wo found once.

@@ -181,7 +181,7 @@ fn batch_forms_equal_single_calls() {
         for ((&u, d), p) in u.iter().zip(&drawn).zip(&portable) {
             let one = s.sample(wo, u);
             assert_eq!(bits(&one), bits(d), "{wo} {u}");
-            assert_eq!(bits(&s.sample_one(wo, u)), bits(d), "{wo} {u}");
+            assert_eq!(bits(&s.sample_one(None, wo, u)), bits(d), "{wo} {u}");
             assert_eq!(bits(p), bits(d), "{wo} {u}");
             wis.push(d.map_or(direction(0.3, 2.0), |d| d.wi));
         }
@@ -197,7 +197,7 @@ fn batch_forms_equal_single_calls() {
         s.pdf_batch_one(None, wo, &wis, &mut portable);
         for ((&wi, &p), &q) in wis.iter().zip(&densities).zip(&portable) {
             assert_eq!(s.pdf(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
-            assert_eq!(s.pdf_one(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
+            assert_eq!(s.pdf_one(None, wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
             assert_eq!(q.to_bits(), p.to_bits(), "{wo} {wi}");
         }
     }
@@ -288,7 +288,8 @@ fn each_forms_equal_single_calls() {
 /// The blend's slice k is the number of inner breakpoints whose cosine is
 /// at or above cos θ_o, as a plain search counts it, for 1 to 130
 /// breakpoints (the counts run 8 at a time over padded lists), at the
-/// breakpoints themselves and between them.
+/// breakpoints themselves and between them, with and without the AVX2
+/// token (the masks' runs).
 #[test]
 fn blend_slice_is_the_plain_count() {
     for count in [1usize, 2, 3, 9, 10, 17, 64, 130] {
@@ -306,7 +307,15 @@ fn blend_slice_is_the_plain_count() {
             } else {
                 inner.iter().filter(|&&c| c >= z).count()
             };
-            assert_eq!(blend.at(z).0, want, "{count} breakpoints, z = {z}");
+            assert_eq!(blend.at(None, z).0, want, "{count} breakpoints, z = {z}");
+            #[cfg(target_arch = "x86_64")]
+            if let Some(cpu) = acdf_core::cpu::avx2() {
+                assert_eq!(
+                    blend.at(Some(cpu), z).0,
+                    want,
+                    "{count} breakpoints, z = {z}"
+                );
+            }
         }
     }
 }
@@ -320,20 +329,20 @@ fn blend_weights_follow_cos_theta_o() {
     let u = [0.0, 0.3, 0.7, 1.0];
     let blend = ThetaOBlend::new(&u);
     let cos = cos_theta_o(&u);
-    assert_eq!(blend.at(1.0), (0, 0.0));
-    assert_eq!(blend.at(GRAZING_COS), (2, 1.0));
-    assert_eq!(blend.at(0.0), (2, 1.0));
-    assert_eq!(blend.at(f32::NAN), (0, 0.0));
-    assert_eq!(ThetaOBlend::new(&[0.0]).at(0.5), (0, 0.0));
+    assert_eq!(blend.at(None, 1.0), (0, 0.0));
+    assert_eq!(blend.at(None, GRAZING_COS), (2, 1.0));
+    assert_eq!(blend.at(None, 0.0), (2, 1.0));
+    assert_eq!(blend.at(None, f32::NAN), (0, 0.0));
+    assert_eq!(ThetaOBlend::new(&[0.0]).at(None, 0.5), (0, 0.0));
     // Halfway in cos θ_o between breakpoints 1 and 2.
     let z = 0.5 * (cos[1] + cos[2]);
-    let (k, t) = blend.at(z);
+    let (k, t) = blend.at(None, z);
     assert_eq!(k, 1);
     assert!((t - 0.5).abs() < 1e-5, "{t}");
     assert!((t - cos_weight(cos[1], cos[2], z)).abs() < 1e-6);
     // The weight of each slice on either side of breakpoint 1.
     let weights = |z: f32| {
-        let (k, t) = blend.at(z);
+        let (k, t) = blend.at(None, z);
         let mut w = [0.0f32; 4];
         w[k] += 1.0 - t;
         w[k + 1] += t;
