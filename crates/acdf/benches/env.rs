@@ -2,7 +2,8 @@
 //! of the environment samplers (the shading normal changing on every call,
 //! as in a renderer) beside `sample` of the BRDF samplers (the outgoing
 //! direction changing on every call), one thread. The orientation-aware
-//! sampler is also timed with each normal held for 64 consecutive calls.
+//! sampler is also timed with each normal held for 64 consecutive calls,
+//! and with one normal for all calls.
 //!
 //! The map is `rooitou_park_1k.hdr` of the shared data when present (a
 //! sun holding 66% of the energy), else a generated 1024 × 512 sky with a
@@ -98,6 +99,16 @@ fn env(c: &mut Criterion) {
                 b.iter(|| {
                     for (i, &u) in u.iter().enumerate() {
                         let n = normals[(i / COHERENT_RUN) % normals.len()];
+                        black_box(s.sample(Some(black_box(n)), black_box(u)));
+                    }
+                })
+            });
+            // One normal for every call: one region's table, warm in the
+            // caches, so what is left is the work of a call.
+            let n = normals[1];
+            group.bench_function("oriented:dp, one normal", |b| {
+                b.iter(|| {
+                    for &u in &u {
                         black_box(s.sample(Some(black_box(n)), black_box(u)));
                     }
                 })
