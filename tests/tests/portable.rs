@@ -5,7 +5,8 @@
 //! portable path forced and once on the detected one, and every output is
 //! compared by `to_bits()`: the distributions' `sample_batch`, `pdf_batch`
 //! and `SliceDistribution` batch forms, the tabulated samplers' `sample`,
-//! `pdf` and batch forms, the outgoing sampler's, the searches of `acdf_core::search` and the
+//! `pdf` and batch forms, the outgoing sampler's, the environment samplers'
+//! `sample` and `pdf`, the searches of `acdf_core::search` and the
 //! many-angle sines and cosines. The inputs hold random numbers and the
 //! edges (u = 0, -0, next to 1, 1, NaN, out of range), tables with zero
 //! rows, and tables of odd sizes that fill no lane evenly.
@@ -512,6 +513,118 @@ fn outgoing_sampler_on_nickel() {
     let mixed = plain.with_cosine_mix(0.1).unwrap();
     compared += compare_sampler(&paths, "outgoing:chi2+cosine", &mixed, &mut rng);
     println!("outgoing sampler: {compared} outputs compared");
+}
+
+impl Bits for Option<acdf_core::SphereSample> {
+    fn bits(&self) -> Vec<u32> {
+        match self {
+            None => vec![u32::MAX],
+            Some(s) => vec![
+                s.dir.x.to_bits(),
+                s.dir.y.to_bits(),
+                s.dir.z.to_bits(),
+                s.pdf.to_bits(),
+            ],
+        }
+    }
+}
+
+/// The environment samplers' `sample` and `pdf` (their AVX2 copies against
+/// the portable ones) on a 64 × 32 map with a sun, a dark band and a row
+/// of zeros: the uniform, adaptive and orientation-aware samplers, the last
+/// with and without a defensive share, for normals over the sphere and at
+/// the edges (the poles, no normal, not unit, not finite).
+#[test]
+fn environment_samplers_on_a_map() {
+    use acdf_core::SphereSampler;
+    let paths = lock();
+    let mut rng = Pcg64::seed_from_u64(6);
+    let map = std::sync::Arc::new(
+        acdf_lights::EnvMap::from_fn(64, 32, |k, j| {
+            let v = if (k as i64 - 20).abs() < 2 && (j as i64 - 9).abs() < 2 {
+                500.0
+            } else if j == 20 {
+                0.0
+            } else if j > 24 {
+                0.02
+            } else {
+                0.5 + (k as f32 * 0.37).sin().abs()
+            };
+            acdf_core::Rgb::splat(v)
+        })
+        .unwrap(),
+    );
+    let mut normals: Vec<Option<Vec3>> = directions(&mut rng, 120)
+        .into_iter()
+        .map(|d| Some(if rng.random::<bool>() { d } else { -d }))
+        .collect();
+    normals.extend([
+        None,
+        Some(Vec3::new(0.0, 0.0, -1.0)),
+        Some(Vec3::new(0.0, 0.0, 3.0)),
+    ]);
+    let u = points(&mut rng, normals.len(), 64, 32);
+    let u = &u[..normals.len()];
+    let builder = || acdf_adaptive::AdaptiveBuilder::by_name("dp", None).unwrap();
+    let grid = acdf_lights::NormalGrid::new(4, 8).unwrap();
+    let samplers: Vec<(&str, Box<dyn SphereSampler>)> = vec![
+        (
+            "uniform",
+            Box::new(
+                acdf_uniform::uniform_env_sampler(&map, acdf_lights::TableKind::Luminance).unwrap(),
+            ),
+        ),
+        (
+            "adaptive:dp",
+            Box::new(
+                acdf_adaptive::adaptive_env_sampler(
+                    &map,
+                    acdf_lights::TableKind::Luminance,
+                    &builder(),
+                )
+                .unwrap(),
+            ),
+        ),
+        (
+            "oriented:dp",
+            Box::new(
+                acdf_adaptive::oriented_env_sampler(map.clone(), builder(), grid, 0.0).unwrap(),
+            ),
+        ),
+        (
+            "oriented:dp defensive",
+            Box::new(
+                acdf_adaptive::oriented_env_sampler(map.clone(), builder(), grid, 0.25).unwrap(),
+            ),
+        ),
+    ];
+    let mut compared = 0;
+    for (name, s) in &samplers {
+        // Directions: the portable path's draws, and the edges.
+        let mut dirs: Vec<Vec3> = normals
+            .iter()
+            .zip(u)
+            .map(|(&n, &u)| s.sample(n, u).map_or(Vec3::Z, |d| d.dir))
+            .collect();
+        dirs.rotate_left(5);
+        let edges = directions(&mut rng, 0);
+        dirs[..edges.len()].copy_from_slice(&edges);
+        compared += same_bits(&paths, &format!("{name} sample"), || {
+            normals
+                .iter()
+                .zip(u)
+                .map(|(&n, &u)| s.sample(n, u))
+                .collect::<Vec<_>>()
+        });
+        compared += same_bits(&paths, &format!("{name} pdf"), || {
+            normals
+                .iter()
+                .zip(&dirs)
+                .map(|(&n, &d)| s.pdf(n, d))
+                .collect::<Vec<_>>()
+        });
+    }
+    println!("environment samplers: {compared} outputs compared");
 }
 
 #[test]

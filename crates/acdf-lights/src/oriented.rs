@@ -510,12 +510,22 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
     /// rescaled), and the density is the mixture's, of which the drawn
     /// component's part comes with the draw.
     fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        self.sample_from(unit_normal(normal).and_then(|n| self.node_dist(n)), u)
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+            // requirement of the function's target features.
+            return unsafe { self.sample_avx2(cpu, normal, u) };
+        }
+        self.sample_portable(normal, u)
     }
 
     fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
-        self.density_of(node, dir)
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: as for `sample`.
+            return unsafe { self.pdf_avx2(cpu, normal, dir) };
+        }
+        self.pdf_portable(normal, dir)
     }
 
     /// The plain table and the nodes built so far.
@@ -547,6 +557,57 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
 }
 
 impl<B: TableBuilder> OrientedSampler<B> {
+    /// [`sample`](SphereSampler::sample) itself: the node of the normal,
+    /// then the draw.
+    #[inline(always)]
+    fn sample_one(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
+        self.sample_from(unit_normal(normal).and_then(|n| self.node_dist(n)), u)
+    }
+
+    /// [`pdf`](SphereSampler::pdf) itself.
+    #[inline(always)]
+    fn pdf_one(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
+        let node = unit_normal(normal).and_then(|n| self.node_dist(n));
+        self.density_of(node, dir)
+    }
+
+    /// [`sample_one`](Self::sample_one) for CPUs without AVX2, out of line
+    /// so that `sample` stays a feature test and a call.
+    #[inline(never)]
+    fn sample_portable(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
+        self.sample_one(normal, u)
+    }
+
+    /// [`pdf_one`](Self::pdf_one) for CPUs without AVX2, out of line.
+    #[inline(never)]
+    fn pdf_portable(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
+        self.pdf_one(normal, dir)
+    }
+
+    /// [`sample_one`](Self::sample_one) compiled for AVX2: the same IEEE
+    /// operations in three-operand instructions, with blends for the
+    /// selects of the region lookup (the pseudo-azimuth's unfolding, the
+    /// polar caps) and of the table's draw. The chain from the normal to
+    /// the region's first read is what a call waits for, and the baseline
+    /// code spends three instructions on each select where AVX2 spends one.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn sample_avx2(
+        &self,
+        _: acdf_core::cpu::Avx2,
+        normal: Option<Vec3>,
+        u: Vec2,
+    ) -> Option<SphereSample> {
+        self.sample_one(normal, u)
+    }
+
+    /// [`pdf_one`](Self::pdf_one) compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn pdf_avx2(&self, _: acdf_core::cpu::Avx2, normal: Option<Vec3>, dir: Vec3) -> f32 {
+        self.pdf_one(normal, dir)
+    }
+
     /// [`sample`](SphereSampler::sample) once the normal's node
     /// distribution `node` is known (`None`: no usable normal, or a node
     /// without light).

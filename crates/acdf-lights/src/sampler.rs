@@ -66,6 +66,34 @@ impl<D: Distribution2D> LatLongSampler<D> {
         Ok(Self::new(name, map.grid().clone(), dist))
     }
 
+    /// [`sample`](SphereSampler::sample) itself.
+    #[inline(always)]
+    fn sample_one(&self, u: Vec2) -> Option<SphereSample> {
+        let s = self.dist.sample(u);
+        finish_draw(
+            &self.grid,
+            s,
+            |_, _| s.pdf,
+            |dir| texel_density(&self.grid, &self.dist, dir),
+        )
+    }
+
+    /// [`sample_one`](Self::sample_one) compiled for AVX2: the same IEEE
+    /// operations, in three-operand instructions with blends for the
+    /// selects.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn sample_avx2(&self, _: acdf_core::cpu::Avx2, u: Vec2) -> Option<SphereSample> {
+        self.sample_one(u)
+    }
+
+    /// The density of `dir` compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn pdf_avx2(&self, _: acdf_core::cpu::Avx2, dir: Vec3) -> f32 {
+        texel_density(&self.grid, &self.dist, dir)
+    }
+
     /// The distribution over the unit square.
     pub fn distribution(&self) -> &D {
         &self.dist
@@ -118,17 +146,22 @@ impl<D: Distribution2D> SphereSampler for LatLongSampler<D> {
 
     #[inline]
     fn sample(&self, _normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        let s = self.dist.sample(u);
-        finish_draw(
-            &self.grid,
-            s,
-            |_, _| s.pdf,
-            |dir| texel_density(&self.grid, &self.dist, dir),
-        )
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
+            // requirement of the function's target features.
+            return unsafe { self.sample_avx2(cpu, u) };
+        }
+        self.sample_one(u)
     }
 
     #[inline]
     fn pdf(&self, _normal: Option<Vec3>, dir: Vec3) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(cpu) = acdf_core::cpu::avx2() {
+            // SAFETY: as for `sample`.
+            return unsafe { self.pdf_avx2(cpu, dir) };
+        }
         texel_density(&self.grid, &self.dist, dir)
     }
 
