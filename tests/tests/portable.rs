@@ -66,17 +66,23 @@ impl Bits for Sample2D {
     }
 }
 
+/// The bits of a draw, a direction and its density; `u32::MAX` for none.
+fn draw_bits(draw: Option<(Vec3, f32)>) -> Vec<u32> {
+    match draw {
+        None => vec![u32::MAX],
+        Some((d, pdf)) => vec![d.x.to_bits(), d.y.to_bits(), d.z.to_bits(), pdf.to_bits()],
+    }
+}
+
 impl Bits for Option<BxdfSample> {
     fn bits(&self) -> Vec<u32> {
-        match self {
-            None => vec![u32::MAX],
-            Some(s) => vec![
-                s.wi.x.to_bits(),
-                s.wi.y.to_bits(),
-                s.wi.z.to_bits(),
-                s.pdf.to_bits(),
-            ],
-        }
+        draw_bits(self.as_ref().map(|s| (s.wi, s.pdf)))
+    }
+}
+
+impl Bits for Option<acdf_core::SphereSample> {
+    fn bits(&self) -> Vec<u32> {
+        draw_bits(self.as_ref().map(|s| (s.dir, s.pdf)))
     }
 }
 
@@ -410,6 +416,16 @@ fn directions(rng: &mut Pcg64, n: usize) -> Vec<Vec3> {
     v
 }
 
+/// Directions to take densities at: `draws` turned by `shift` (so that
+/// each pair's direction is another pair's draw), the edge directions of
+/// [`directions`] written over the first.
+fn with_edges(mut draws: Vec<Vec3>, shift: usize, rng: &mut Pcg64) -> Vec<Vec3> {
+    draws.rotate_left(shift);
+    let edges = directions(rng, 0);
+    draws[..edges.len()].copy_from_slice(&edges);
+    draws
+}
+
 /// Every entry point of a tabulated sampler, with the batch forms fed the
 /// same pairs.
 fn compare_sampler(paths: &PathLock, name: &str, s: &dyn BxdfSampler, rng: &mut Pcg64) -> usize {
@@ -418,14 +434,12 @@ fn compare_sampler(paths: &PathLock, name: &str, s: &dyn BxdfSampler, rng: &mut 
     let u = points(rng, wo.len(), 32, 256);
     let u = &u[..wo.len()];
     // Incident directions: the draws of the portable path, and the edges.
-    let mut wi: Vec<Vec3> = wo
+    let draws = wo
         .iter()
         .zip(u)
         .map(|(&wo, &u)| s.sample(wo, u).map_or(Vec3::Z, |d| d.wi))
         .collect();
-    wi.rotate_left(3);
-    let edges = directions(rng, 0);
-    wi[..edges.len()].copy_from_slice(&edges);
+    let wi = with_edges(draws, 3, rng);
     compared += same_bits(paths, &format!("{name} sample"), || {
         wo.iter()
             .zip(u)
@@ -515,20 +529,6 @@ fn outgoing_sampler_on_nickel() {
     println!("outgoing sampler: {compared} outputs compared");
 }
 
-impl Bits for Option<acdf_core::SphereSample> {
-    fn bits(&self) -> Vec<u32> {
-        match self {
-            None => vec![u32::MAX],
-            Some(s) => vec![
-                s.dir.x.to_bits(),
-                s.dir.y.to_bits(),
-                s.dir.z.to_bits(),
-                s.pdf.to_bits(),
-            ],
-        }
-    }
-}
-
 /// The environment samplers' `sample` and `pdf` (their AVX2 copies against
 /// the portable ones) on a 64 × 32 map with a sun, a dark band and a row
 /// of zeros: the uniform, adaptive and orientation-aware samplers, the last
@@ -601,14 +601,12 @@ fn environment_samplers_on_a_map() {
     let mut compared = 0;
     for (name, s) in &samplers {
         // Directions: the portable path's draws, and the edges.
-        let mut dirs: Vec<Vec3> = normals
+        let draws = normals
             .iter()
             .zip(u)
             .map(|(&n, &u)| s.sample(n, u).map_or(Vec3::Z, |d| d.dir))
             .collect();
-        dirs.rotate_left(5);
-        let edges = directions(&mut rng, 0);
-        dirs[..edges.len()].copy_from_slice(&edges);
+        let dirs = with_edges(draws, 5, &mut rng);
         compared += same_bits(&paths, &format!("{name} sample"), || {
             normals
                 .iter()

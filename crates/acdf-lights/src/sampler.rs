@@ -79,8 +79,7 @@ impl<D: Distribution2D> LatLongSampler<D> {
     }
 
     /// [`sample_one`](Self::sample_one) compiled for AVX2: the same IEEE
-    /// operations, in three-operand instructions with blends for the
-    /// selects.
+    /// operations, in three-operand (VEX) instructions.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn sample_avx2(&self, _: acdf_core::cpu::Avx2, u: Vec2) -> Option<SphereSample> {
