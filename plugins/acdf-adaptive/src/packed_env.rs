@@ -19,8 +19,13 @@ use acdf_core::search::{count_at_or_below, count_window, Guide, WINDOW};
 use acdf_core::{clamp_unit, Distribution2D, Error, Result, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use acdf_lights::TableBuilder;
 
-use crate::curve::{f32_below, segment_density, segment_samples, Segment, CURVE_GUIDE_CELLS};
+use crate::curve::{f32_below, segment_density, segment_samples, Segment};
 use crate::{AdaptiveBuilder, AdaptiveCdf2D};
+
+/// The cells of the marginal's guide over u.y: fine enough that most
+/// cells hold one marginal segment, whose conditional can then be asked
+/// for before the marginal's search ends.
+pub const MARGINAL_GUIDE_CELLS: usize = 256;
 
 /// The largest quantised conditional CDF value: c is stored as about
 /// c · 65535.
@@ -34,6 +39,49 @@ pub const WINDOW_PAIRS: usize = 32;
 /// A packed conditional vertex: column index in the low 16 bits, quantised
 /// CDF value in the high 16.
 type Pair = u32;
+
+/// The cells of each conditional's guide over u.x (a power of two: cell
+/// k holds the quantised keys k · 65536 / G ..= (k + 1) · 65536 / G − 1).
+pub const CONDITIONAL_GUIDE_CELLS: usize = 16;
+/// log2 of 65536 / [`CONDITIONAL_GUIDE_CELLS`]: a key's cell is key >> this.
+const CONDITIONAL_CELL_SHIFT: u32 = 16 - CONDITIONAL_GUIDE_CELLS.trailing_zeros();
+/// The candidates of a conditional's search compared at once without a
+/// four-way step, when the guide leaves no more.
+const SHORT_WINDOW: usize = 8;
+
+/// One conditional's guide: entry k is the number of its inner vertices
+/// (all but the first and last) whose CDF value is at most the last key of
+/// cell k, so the vertices a key of cell k must be compared with are
+/// those from entry k − 1 (0 for k = 0) to entry k. One cache line holds
+/// it (32 bytes, aligned).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(32))]
+struct ConditionalGuide([u16; CONDITIONAL_GUIDE_CELLS]);
+
+impl ConditionalGuide {
+    /// The guide of a conditional with the quantised CDF values `cdf`.
+    fn new(cdf: &[u32]) -> ConditionalGuide {
+        let inner = &cdf[1..cdf.len().max(2) - 1];
+        ConditionalGuide(std::array::from_fn(|k| {
+            let last = (((k + 1) << CONDITIONAL_CELL_SHIFT) - 1) as u32;
+            // At most 65534 inner vertices: columns are below 2^16.
+            inner.partition_point(|&c| c <= last) as u16
+        }))
+    }
+
+    /// The inner vertices (offsets from the first inner one, start and
+    /// count) that a key of cell `cell` is compared with.
+    #[inline(always)]
+    fn candidates(&self, cell: usize) -> (usize, usize) {
+        let hi = self.0[cell] as usize;
+        let lo = if cell > 0 {
+            self.0[cell - 1] as usize
+        } else {
+            0
+        };
+        (lo, hi.saturating_sub(lo))
+    }
+}
 
 /// One marginal vertex: its row position j / n_y, and the first conditional
 /// vertex of the marginal segment that starts at it (for the last vertex,
@@ -51,23 +99,30 @@ struct MarginalVertex {
 /// documentation.
 ///
 /// The layout follows the chain of reads of a draw, so that the chain has
-/// few links: the marginal's guide is held inline (it is read first, from
-/// u.y alone); the marginal's CDF values are contiguous, for the window
+/// few links: the marginal's guide is read first, from u.y alone (an
+/// allocation of its own, so that the slots of regions not yet built stay
+/// small); the marginal's CDF values are contiguous, for the window
 /// that compares 32 of them at once; each marginal vertex carries its row
 /// position and its conditional's first vertex together (one read gives
 /// both); a conditional's vertices are packed pairs (column index, CDF
 /// value) in one `u32`, so that the window searched for u.x also holds the
-/// segment's ends.
+/// segment's ends; and each conditional has a guide over u.x that leaves
+/// at most 8 candidates for three draws in four (rooitou_park's region
+/// tables, counted over the benchmark's draws), so that the window is
+/// found without the four-way steps that long conditionals need, and the
+/// marginal guide's first segment's window can be asked for (a prefetch)
+/// before the marginal's search has found the segment.
 ///
-/// Storage: 12 bytes per marginal vertex, 132 for the guide, 4 bytes per
-/// conditional vertex, and padding after the marginal's CDF values and
+/// Storage: 12 bytes per marginal vertex, 1028 for the marginal's guide,
+/// 4 bytes per conditional vertex, 32 per marginal segment for its
+/// conditional's guide, and padding after the marginal's CDF values and
 /// the conditionals (32 entries each) so that a window can always be read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PackedEnvCdf2D {
     /// For the guide cell g of u.y, the marginal's inner CDF values at or
     /// below every u of the cell: `guide[g]`, and the candidates end at
     /// `guide[g + 1]` (see `acdf_core::search::Guide`).
-    guide: [u32; CURVE_GUIDE_CELLS + 1],
+    guide: Box<[u32; MARGINAL_GUIDE_CELLS + 1]>,
     /// The marginal's m CDF values (multiples of 2^-24 from 0 to 1), then
     /// the padding (1.0).
     marginal_cdf: Box<[f32]>,
@@ -77,6 +132,9 @@ pub struct PackedEnvCdf2D {
     /// n_x, CDF values 0 = c_0 <= ... <= c_{k-1} = 65535), one conditional
     /// after another, then the padding (all ones).
     conditionals: Box<[Pair]>,
+    /// Per marginal segment, its conditional's guide (all zeros for a
+    /// segment without mass).
+    conditional_guide: Box<[ConditionalGuide]>,
     n_x: f32,
     /// n_x / 65535: a conditional segment's density is its mass in units
     /// times this, over its width in columns.
@@ -142,6 +200,7 @@ impl PackedEnvCdf2D {
 
         let mut firsts = vec![0u32];
         let mut conditionals: Vec<Pair> = Vec::new();
+        let mut conditional_guide: Vec<ConditionalGuide> = Vec::new();
         let mut columns = vec![0.0f64; n_x];
         for (j, w) in marginal_rows.windows(2).enumerate() {
             if quantised[j + 1] > quantised[j] {
@@ -172,6 +231,9 @@ impl PackedEnvCdf2D {
                     .collect();
                 let cdf = quantise(&masses, Q16);
                 conditionals.extend(pos.iter().zip(&cdf).map(|(&p, &c)| p as u32 | c << 16));
+                conditional_guide.push(ConditionalGuide::new(&cdf));
+            } else {
+                conditional_guide.push(ConditionalGuide([0; CONDITIONAL_GUIDE_CELLS]));
             }
             let end = u32::try_from(conditionals.len())
                 .map_err(|_| too_large("more than 2^32 conditional vertices".into()))?;
@@ -189,20 +251,21 @@ impl PackedEnvCdf2D {
         let m = marginal_cdf.len();
         // guide[g]: the inner CDF values (c_1 .. c_{m-2}) in cells below g.
         let inner = &marginal_cdf[1..m - 1];
-        let mut guide = [0u32; CURVE_GUIDE_CELLS + 1];
+        let mut guide = [0u32; MARGINAL_GUIDE_CELLS + 1];
         let mut k = 0;
         for (g, lo) in guide.iter_mut().enumerate() {
-            while k < inner.len() && Guide::cell(inner[k], CURVE_GUIDE_CELLS) < g {
+            while k < inner.len() && Guide::cell(inner[k], MARGINAL_GUIDE_CELLS) < g {
                 k += 1;
             }
             *lo = k as u32;
         }
         marginal_cdf.extend([1.0f32; WINDOW]);
         Ok(PackedEnvCdf2D {
-            guide,
+            guide: Box::new(guide),
             marginal_cdf: marginal_cdf.into_boxed_slice(),
             marginal: marginal.into_boxed_slice(),
             conditionals: conditionals.into_boxed_slice(),
+            conditional_guide: conditional_guide.into_boxed_slice(),
             n_x: n_x as f32,
             density_scale: (n_x as f64 / Q16 as f64) as f32,
             integral: if total > 0.0 { total / cells } else { 0.0 },
@@ -267,26 +330,38 @@ impl Distribution2D for PackedEnvCdf2D {
     #[inline(always)]
     fn sample(&self, u: Vec2) -> Sample2D {
         let uy = clamp_unit(u.y);
-        let g = Guide::cell(uy, CURVE_GUIDE_CELLS);
+        let g = Guide::cell(uy, MARGINAL_GUIDE_CELLS);
         let (a, b) = (self.guide[g] as usize, self.guide[g + 1] as usize);
-        // The conditional of the cell's first segment, the likeliest, is
-        // asked for while the marginal is searched.
-        if let Some(v) = self.marginal.get(a) {
-            prefetch(&self.conditionals, v.first as usize);
+        let us = clamp_unit(u.x) * Q16 as f32;
+        let key = ((us as u32) << 16) | 0xffff;
+        let cell = (us as u32 >> CONDITIONAL_CELL_SHIFT) as usize;
+        // The window of the cell's first segment (the drawn one, most
+        // often, with guide cells this fine) is asked for while the
+        // marginal is searched.
+        if let (Some(v), Some(cg)) = (self.marginal.get(a), self.conditional_guide.get(a)) {
+            prefetch(
+                &self.conditionals,
+                v.first as usize + 1 + cg.candidates(cell).0,
+            );
         }
         let j = a + if b - a <= WINDOW {
             count_window(&self.marginal_cdf, 1 + a, b - a, uy)
         } else {
             count_at_or_below(&self.marginal_cdf, 1 + a, b - a, [uy])[0]
         };
-        let (segment, first, end) = self.marginal_segment(j);
+        let (segment, first, _) = self.marginal_segment(j);
         let ([y], [py]) = segment_samples(&[segment], &[uy]);
         // A drawn segment has mass, so its conditional has two vertices or
-        // more; the `max` keeps a corrupt one in bounds.
-        let len = end.saturating_sub(first).max(2);
-        let us = clamp_unit(u.x) * Q16 as f32;
-        let key = ((us as u32) << 16) | 0xffff;
-        let i = first + count_vertices_at_or_below(&self.conditionals, first + 1, len - 2, key);
+        // more, and the guide's candidates lie between them.
+        let (lo, n) = self.conditional_guide[j].candidates(cell);
+        let start = first + 1 + lo;
+        let i = first
+            + lo
+            + if n <= SHORT_WINDOW {
+                count_short_window(&self.conditionals, start, n, key)
+            } else {
+                count_vertices_at_or_below(&self.conditionals, start, n, key)
+            };
         let (e0, e1) = (self.conditionals[i], self.conditionals[i + 1]);
         let (c0, c1) = ((e0 >> 16) as f32, (e1 >> 16) as f32);
         let (p0, p1) = ((e0 & 0xffff) as f32, (e1 & 0xffff) as f32);
@@ -348,10 +423,11 @@ impl Distribution2D for PackedEnvCdf2D {
     /// The guide, the marginal's CDF values and vertices, the conditionals
     /// and the padding.
     fn storage_bytes(&self) -> usize {
-        std::mem::size_of_val(&self.guide)
+        std::mem::size_of_val(&*self.guide)
             + std::mem::size_of_val(&*self.marginal_cdf)
             + std::mem::size_of_val(&*self.marginal)
             + std::mem::size_of_val(&*self.conditionals)
+            + std::mem::size_of_val(&*self.conditional_guide)
     }
 }
 
@@ -421,6 +497,23 @@ pub(crate) fn quantise(masses: &[f64], q: u32) -> Vec<u32> {
         out.push(v);
     }
     out
+}
+
+/// The number of the packed vertices `data[start..start + len]`, `len` at
+/// most [`SHORT_WINDOW`], whose pair is `<= key`, when the vertex after
+/// them is above the key (as the conditional guide's candidates are): the
+/// run of ones from the first bit of one compare of [`SHORT_WINDOW`]
+/// entries (it may reach into the padding after the conditionals).
+#[inline(always)]
+fn count_short_window(data: &[u32], start: usize, len: usize, key: u32) -> usize {
+    let window = data
+        .get(start..start + SHORT_WINDOW)
+        .unwrap_or(&data[start.min(data.len())..]);
+    let mask = window
+        .iter()
+        .enumerate()
+        .fold(0u32, |m, (k, &e)| m | ((e <= key) as u32) << k);
+    (mask.trailing_ones() as usize).min(len)
 }
 
 /// Ask the CPU for the cache lines of `data[start..start + 32]` (a hint:
@@ -575,6 +668,66 @@ mod tests {
         }
     }
 
+    /// The conditional guide's candidates, searched as `sample` searches
+    /// them, give the plain count of inner CDF values at or below the key,
+    /// for every key: on conditionals of 2 to 3000 vertices with runs of
+    /// equal values (empty segments), values crowded into one cell (more
+    /// candidates than the short window) and values on cell edges.
+    #[test]
+    fn guided_counts_are_the_plain_count() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
+        for (len, crowd) in [
+            (2usize, false),
+            (3, false),
+            (9, true),
+            (40, false),
+            (40, true),
+            (700, false),
+            (3000, true),
+        ] {
+            let mut inner: Vec<u32> = (0..len - 2)
+                .map(|_| match rng.random_range(0..4) {
+                    0 if crowd => rng.random_range(8192..8200),
+                    1 => (rng.random_range(0..16u32) << CONDITIONAL_CELL_SHIFT)
+                        .saturating_sub(rng.random_range(0..2)),
+                    _ => rng.random_range(0..Q16),
+                })
+                .collect();
+            inner.sort_unstable();
+            let cdf: Vec<u32> = std::iter::once(0)
+                .chain(inner.iter().copied())
+                .chain([Q16])
+                .collect();
+            let guide = ConditionalGuide::new(&cdf);
+            let mut data = vec![5u32; 3];
+            data.extend(
+                cdf.iter()
+                    .enumerate()
+                    .map(|(i, &c)| (c << 16) | (i as u32 % 1024)),
+            );
+            data.extend([Pair::MAX; WINDOW_PAIRS]);
+            for k in (0..Q16)
+                .step_by(7)
+                .chain([0, 4095, 4096, 8191, 8192, 65534])
+            {
+                let key = k << 16 | 0xffff;
+                let (lo, n) = guide.candidates((k >> CONDITIONAL_CELL_SHIFT) as usize);
+                let start = 3 + 1 + lo;
+                let got = lo
+                    + if n <= SHORT_WINDOW {
+                        count_short_window(&data, start, n, key)
+                    } else {
+                        count_vertices_at_or_below(&data, start, n, key)
+                    };
+                assert_eq!(
+                    got,
+                    inner.partition_point(|&c| c <= k),
+                    "{len} vertices, key {k}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn quantised_cdfs_keep_every_positive_segment() {
         let masses = [1.0, 1e-12, 0.0, 3.0, 1e-9, 0.0];
@@ -630,7 +783,12 @@ mod tests {
             let back = d.invert(s.p);
             assert!((back - u).abs().max_element() < 1e-3, "{u:?} -> {back:?}");
         }
-        assert!(d.storage_bytes() < a.storage_bytes());
+        // The vertices take less room than the adaptive table's; the guides
+        // (a fixed 1028 bytes and 32 per marginal segment) are what the
+        // packed form spends for speed.
+        let guides =
+            std::mem::size_of_val(&*d.guide) + std::mem::size_of_val(&*d.conditional_guide);
+        assert!(d.storage_bytes() - guides < a.storage_bytes());
         assert!((d.integral() - a.integral()).abs() < 1e-9 * a.integral());
     }
 
