@@ -597,6 +597,32 @@ fn environment_samplers_on_a_map() {
                 acdf_adaptive::oriented_env_sampler(map.clone(), builder(), grid, 0.25).unwrap(),
             ),
         ),
+        // Columns found by octant compares with three tangents, and by
+        // bins of the pseudo-azimuth (12 is not a multiple of 8).
+        (
+            "oriented:dp 4x32",
+            Box::new(
+                acdf_adaptive::oriented_env_sampler(
+                    map.clone(),
+                    builder(),
+                    acdf_lights::NormalGrid::new(4, 32).unwrap(),
+                    0.0,
+                )
+                .unwrap(),
+            ),
+        ),
+        (
+            "oriented:dp 3x12",
+            Box::new(
+                acdf_adaptive::oriented_env_sampler(
+                    map.clone(),
+                    builder(),
+                    acdf_lights::NormalGrid::new(3, 12).unwrap(),
+                    0.0,
+                )
+                .unwrap(),
+            ),
+        ),
     ];
     let mut compared = 0;
     for (name, s) in &samplers {

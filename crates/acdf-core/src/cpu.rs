@@ -1,7 +1,8 @@
 //! The CPU features the hot paths choose their code by, detected once.
 //!
 //! Two choices are made at run time, everywhere through this module:
-//! - **AVX2 and FMA** ([`avx2`]): the batch searches in SIMD lanes
+//! - **AVX2 and FMA** ([`avx2`], which also requires POPCNT, present on
+//!   every CPU with AVX2): the batch searches in SIMD lanes
 //!   ([`search::lanes`](crate::search::lanes)), the distributions' batch
 //!   paths built on them, the many-angle sines and cosines of
 //!   [`fast`](crate::fast), and the tabulated samplers' copies of `sample`
@@ -47,8 +48,8 @@
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Mutex, MutexGuard, OnceLock};
 
-/// Proof that the CPU has AVX2 and FMA and that the vectorised paths are
-/// chosen: obtained only from [`avx2`]. It has no size and costs nothing
+/// Proof that the CPU has AVX2, FMA and POPCNT and that the vectorised
+/// paths are chosen: obtained only from [`avx2`]. It has no size and costs nothing
 /// to pass.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Avx2 {
@@ -58,7 +59,7 @@ pub struct Avx2 {
 /// The features the hot paths use, as detected (and possibly forced off).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Features {
-    /// AVX2 and FMA: the lanes and the samplers' AVX2 copies.
+    /// AVX2, FMA and POPCNT: the lanes and the samplers' AVX2 copies.
     pub avx2_fma: bool,
     /// AVX-512 F, VL and BW: the window compares into mask registers.
     pub mask_compares: bool,
@@ -86,8 +87,8 @@ static DETECTED: OnceLock<Features> = OnceLock::new();
 /// The environment variable that forces the portable path.
 pub const ENV_VAR: &str = "ACDF_CPU";
 
-/// An [`Avx2`] token when the CPU has AVX2 and FMA and the portable path is
-/// not forced; `None` otherwise.
+/// An [`Avx2`] token when the CPU has AVX2, FMA and POPCNT and the
+/// portable path is not forced; `None` otherwise.
 #[inline(always)]
 pub fn avx2() -> Option<Avx2> {
     let present = match AVX2_FMA.load(Ordering::Relaxed) {
@@ -131,7 +132,9 @@ pub fn detected() -> Features {
 fn detect_cpu() -> Features {
     use std::arch::is_x86_feature_detected;
     Features {
-        avx2_fma: is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"),
+        avx2_fma: is_x86_feature_detected!("avx2")
+            && is_x86_feature_detected!("fma")
+            && is_x86_feature_detected!("popcnt"),
         mask_compares: is_x86_feature_detected!("avx512f")
             && is_x86_feature_detected!("avx512vl")
             && is_x86_feature_detected!("avx512bw"),
