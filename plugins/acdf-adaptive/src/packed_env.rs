@@ -7,10 +7,11 @@
 //! recomputes their masses from the table: the conditionals (nearly all of
 //! the storage) as 16-bit column indices and 16-bit CDF values, 4 bytes a
 //! vertex instead of 8; the marginal (a few hundred vertices) as `f32`
-//! row positions and CDF values in units of 2^-24, searched as the
-//! adaptive marginal is. Every segment whose texels hold mass keeps at
-//! least one unit of its curve, so every texel with a positive table value
-//! has a positive density, and the density returned with a draw is the one
+//! row positions and CDF values in units of 2^-24, searched through a
+//! guide that also holds the one value most of its cells contain. Every
+//! segment whose texels hold mass keeps at least one unit of its curve,
+//! so every texel with a positive table value has a positive density, and
+//! the density returned with a draw is the one
 //! [`pdf`](Distribution2D::pdf) gives its point: the quantisation changes
 //! which distribution is sampled (slightly), never the exactness of its
 //! density.
@@ -23,9 +24,14 @@ use crate::curve::{f32_below, segment_density, segment_samples, Segment};
 use crate::{AdaptiveBuilder, AdaptiveCdf2D};
 
 /// The cells of the marginal's guide over u.y: fine enough that most
-/// cells hold one marginal segment, whose conditional can then be asked
-/// for before the marginal's search ends.
+/// cells hold at most one of the marginal's CDF values, which the guide
+/// keeps, so that the marginal segment is found from the guide alone.
+/// Each cell spans 2^16 units of the marginal's CDF (2^-24).
 pub const MARGINAL_GUIDE_CELLS: usize = 256;
+/// log2 of the marginal CDF units per guide cell: a CDF value's cell is
+/// value >> this.
+const MARGINAL_CELL_SHIFT: u32 = 16;
+const _: () = assert!(MARGINAL_GUIDE_CELLS << MARGINAL_CELL_SHIFT == Q24 as usize);
 
 /// The largest quantised conditional CDF value: c is stored as about
 /// c · 65535.
@@ -101,17 +107,18 @@ struct MarginalVertex {
 /// The layout follows the chain of reads of a draw, so that the chain has
 /// few links: the marginal's guide is read first, from u.y alone (an
 /// allocation of its own, so that the slots of regions not yet built stay
-/// small); the marginal's CDF values are contiguous, for the window
-/// that compares 32 of them at once; each marginal vertex carries its row
-/// position and its conditional's first vertex together (one read gives
-/// both); a conditional's vertices are packed pairs (column index, CDF
+/// small), and for a cell with at most one CDF value (96% of the
+/// benchmark's draws on rooitou_park's region tables) it holds that value
+/// too, so the marginal segment follows from the guide's entry without a
+/// read of the CDF values; the marginal's CDF values are contiguous, for
+/// the window that compares 32 of them at once in the other cells; each
+/// marginal vertex carries its row position and its conditional's first
+/// vertex together (one read gives both); a conditional's vertices are packed pairs (column index, CDF
 /// value) in one `u32`, so that the window searched for u.x also holds the
 /// segment's ends; and each conditional has a guide over u.x that leaves
 /// at most 8 candidates for three draws in four (rooitou_park's region
 /// tables, counted over the benchmark's draws), so that the window is
-/// found without the four-way steps that long conditionals need, and the
-/// marginal guide's first segment's window can be asked for (a prefetch)
-/// before the marginal's search has found the segment.
+/// found without the four-way steps that long conditionals need.
 ///
 /// Storage: 12 bytes per marginal vertex, 1028 for the marginal's guide,
 /// 4 bytes per conditional vertex, 32 per marginal segment for its
@@ -119,9 +126,12 @@ struct MarginalVertex {
 /// the conditionals (32 entries each) so that a window can always be read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PackedEnvCdf2D {
-    /// For the guide cell g of u.y, the marginal's inner CDF values at or
-    /// below every u of the cell: `guide[g]`, and the candidates end at
-    /// `guide[g + 1]` (see `acdf_core::search::Guide`).
+    /// Entry g: in the high 16 bits, the number of the marginal's inner
+    /// CDF values (c_1 .. c_{m−2}) below 1 whose cell is below g, so that
+    /// cell g's candidates run from entry g's count to entry g + 1's; in
+    /// the low 16 bits, the first candidate's value less g · 2^16, in units
+    /// of 2^-24 (0 when the cell has none). Values of 1 are left out: no u
+    /// reaches them.
     guide: Box<[u32; MARGINAL_GUIDE_CELLS + 1]>,
     /// The marginal's m CDF values (multiples of 2^-24 from 0 to 1), then
     /// the padding (1.0).
@@ -155,7 +165,7 @@ impl PackedEnvCdf2D {
     /// `n_x`, the table `d` was built from): the vertices `d` kept, with
     /// their masses summed from the table in f64 and quantised. An error
     /// when `d`'s vertices are off the texel grid or the table has more
-    /// than 65535 columns or 2^24 rows.
+    /// than 65535 columns or rows.
     pub fn from_adaptive(
         d: &AdaptiveCdf2D,
         values: &[f32],
@@ -169,9 +179,10 @@ impl PackedEnvCdf2D {
                 got: values.len(),
             });
         }
-        if n_x > Q16 as usize || n_y > Q24 as usize {
+        // Rows: the guide counts the marginal's vertices in 16 bits.
+        if n_x > Q16 as usize || n_y > Q16 as usize {
             return Err(too_large(format!(
-                "{n_x} x {n_y} texels: at most 65535 columns and 2^24 rows"
+                "{n_x} x {n_y} texels: at most 65535 columns and 65535 rows"
             )));
         }
         let rows: Vec<f64> = values
@@ -248,16 +259,22 @@ impl PackedEnvCdf2D {
                 first,
             })
             .collect();
-        let m = marginal_cdf.len();
-        // guide[g]: the inner CDF values (c_1 .. c_{m-2}) in cells below g.
-        let inner = &marginal_cdf[1..m - 1];
+        // The inner values in units, whose cell is value >> 16 (256 for 1,
+        // which no cell holds).
+        let inner = &quantised[1..quantised.len() - 1];
         let mut guide = [0u32; MARGINAL_GUIDE_CELLS + 1];
         let mut k = 0;
-        for (g, lo) in guide.iter_mut().enumerate() {
-            while k < inner.len() && Guide::cell(inner[k], MARGINAL_GUIDE_CELLS) < g {
+        for (g, entry) in guide.iter_mut().enumerate() {
+            let cell_of = |c: u32| (c >> MARGINAL_CELL_SHIFT) as usize;
+            while k < inner.len() && cell_of(inner[k]) < g {
                 k += 1;
             }
-            *lo = k as u32;
+            let first = match inner.get(k) {
+                Some(&c) if cell_of(c) == g => c & 0xffff,
+                _ => 0,
+            };
+            // k < 2^16: at most n_y − 1 inner values.
+            *entry = (k as u32) << 16 | first;
         }
         marginal_cdf.extend([1.0f32; WINDOW]);
         Ok(PackedEnvCdf2D {
@@ -295,6 +312,27 @@ impl PackedEnvCdf2D {
         (segment, v0.first as usize, v1.first as usize)
     }
 
+    /// The marginal segment a draw with uy (in [0, 1)) falls in: the
+    /// number of inner CDF values at or below uy. The guide's cell of uy
+    /// leaves its candidates; one candidate (or none) is compared with the
+    /// value the guide holds, more are searched in the CDF values.
+    #[inline(always)]
+    fn drawn_marginal_segment(&self, uy: f32) -> usize {
+        let g = Guide::cell(uy, MARGINAL_GUIDE_CELLS);
+        let (entry, next) = (self.guide[g], self.guide[g + 1]);
+        let (a, b) = ((entry >> 16) as usize, (next >> 16) as usize);
+        if b - a <= 1 {
+            // Exact: an integer below 2^24 times a power of two.
+            let c =
+                ((g as u32) << MARGINAL_CELL_SHIFT | (entry & 0xffff)) as f32 * (1.0 / Q24 as f32);
+            a + ((b > a) & (c <= uy)) as usize
+        } else if b - a <= WINDOW {
+            a + count_window(&self.marginal_cdf, 1 + a, b - a, uy)
+        } else {
+            a + count_at_or_below(&self.marginal_cdf, 1 + a, b - a, [uy])[0]
+        }
+    }
+
     /// The marginal segment j holding y in [0, 1): the last vertex at or
     /// below y.
     #[inline]
@@ -330,25 +368,10 @@ impl Distribution2D for PackedEnvCdf2D {
     #[inline(always)]
     fn sample(&self, u: Vec2) -> Sample2D {
         let uy = clamp_unit(u.y);
-        let g = Guide::cell(uy, MARGINAL_GUIDE_CELLS);
-        let (a, b) = (self.guide[g] as usize, self.guide[g + 1] as usize);
         let us = clamp_unit(u.x) * Q16 as f32;
         let key = ((us as u32) << 16) | 0xffff;
         let cell = (us as u32 >> CONDITIONAL_CELL_SHIFT) as usize;
-        // The window of the cell's first segment (the drawn one, most
-        // often, with guide cells this fine) is asked for while the
-        // marginal is searched.
-        if let (Some(v), Some(cg)) = (self.marginal.get(a), self.conditional_guide.get(a)) {
-            prefetch(
-                &self.conditionals,
-                v.first as usize + 1 + cg.candidates(cell).0,
-            );
-        }
-        let j = a + if b - a <= WINDOW {
-            count_window(&self.marginal_cdf, 1 + a, b - a, uy)
-        } else {
-            count_at_or_below(&self.marginal_cdf, 1 + a, b - a, [uy])[0]
-        };
+        let j = self.drawn_marginal_segment(uy);
         let (segment, first, _) = self.marginal_segment(j);
         let ([y], [py]) = segment_samples(&[segment], &[uy]);
         // A drawn segment has mass, so its conditional has two vertices or
@@ -514,26 +537,6 @@ fn count_short_window(data: &[u32], start: usize, len: usize, key: u32) -> usize
         .enumerate()
         .fold(0u32, |m, (k, &e)| m | ((e <= key) as u32) << k);
     (mask.trailing_ones() as usize).min(len)
-}
-
-/// Ask the CPU for the cache lines of `data[start..start + 32]` (a hint:
-/// no effect on any result, and addresses past the end are allowed).
-#[inline(always)]
-fn prefetch(data: &[Pair], start: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = data.as_ptr().wrapping_add(start);
-        for offset in [0, 16] {
-            // SAFETY: SSE is part of the x86-64 baseline, and a prefetch
-            // reads nothing the program sees: it may name any address.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(offset) as *const i8) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let _ = (data, start);
-    }
 }
 
 /// The number of the packed vertices `data[start..start + len]` (CDF
@@ -723,6 +726,57 @@ mod tests {
                     got,
                     inner.partition_point(|&c| c <= k),
                     "{len} vertices, key {k}"
+                );
+            }
+        }
+    }
+
+    /// The marginal segment a draw finds through the guide is the plain
+    /// count of inner CDF values at or below u.y, for every u.y on a fine
+    /// lattice, at every CDF value and a float step either side, and next
+    /// to 1: on marginals whose values are spread (cells of one value or
+    /// none), crowded (a cell with more than the window), repeated (empty
+    /// rows) and equal to 1 at the end (trailing empty rows).
+    #[test]
+    fn guided_marginal_draws_find_the_plain_segment() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(8);
+        type Row = fn(usize, &mut rand_pcg::Pcg64) -> f32;
+        let tables: [(usize, Row); 3] = [
+            (300, |_, r| r.random_range(0.5..1.5)),
+            (700, |j, r| match j {
+                0..40 => 0.0,
+                40..400 => 1e-7 * r.random::<f32>(),
+                400 => 5.0,
+                600.. => 0.0,
+                _ if j % 7 == 0 => 0.0,
+                _ => r.random::<f32>(),
+            }),
+            (64, |j, _| if j == 10 { 1.0 } else { 0.0 }),
+        ];
+        for (ny, row) in tables {
+            let nx = 2;
+            let values: Vec<f32> = (0..ny)
+                .flat_map(|j| {
+                    let v = row(j, &mut rng);
+                    [v, v]
+                })
+                .collect();
+            let a = AdaptiveCdf2D::from_values(&values, nx, ny, &DouglasPeucker::vertical(), 0.0)
+                .unwrap();
+            let d = PackedEnvCdf2D::from_adaptive(&a, &values, nx, ny).unwrap();
+            let m = d.marginal.len();
+            let inner = &d.marginal_cdf[1..m - 1];
+            let mut us: Vec<f32> = (0..=100_000).map(|k| k as f32 / 100_000.0).collect();
+            for &c in inner {
+                us.extend([c, f32_below(c), c + f32::EPSILON * c.max(1e-30)]);
+            }
+            us.push(ONE_MINUS_EPSILON);
+            for u in us {
+                let u = clamp_unit(u);
+                assert_eq!(
+                    d.drawn_marginal_segment(u),
+                    inner.partition_point(|&c| c <= u),
+                    "{ny} rows, u {u}"
                 );
             }
         }
