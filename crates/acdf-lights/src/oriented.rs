@@ -15,10 +15,11 @@
 //! table's: one table searched per draw, whose density comes with the
 //! draw, so a call costs finding the normal's region (its row from z, its
 //! column from the octant of its azimuth and a few compares, with no
-//! division) and a draw from one table. The estimator is unbiased for every normal because the
-//! table covers every texel the normal sees. An optional defensive share
-//! mixes in the plain luminance table (the mixture's density then needs
-//! one lookup in the table that was not drawn from).
+//! division) and a draw from one table. The estimator is unbiased for
+//! every normal because the table covers every texel the normal sees. An
+//! optional defensive share mixes in the plain luminance table (the
+//! mixture's density then needs one lookup in the table that was not
+//! drawn from).
 
 use std::sync::{Arc, OnceLock};
 

@@ -113,12 +113,13 @@ struct MarginalVertex {
 /// read of the CDF values; the marginal's CDF values are contiguous, for
 /// the window that compares 32 of them at once in the other cells; each
 /// marginal vertex carries its row position and its conditional's first
-/// vertex together (one read gives both); a conditional's vertices are packed pairs (column index, CDF
-/// value) in one `u32`, so that the window searched for u.x also holds the
-/// segment's ends; and each conditional has a guide over u.x that leaves
-/// at most 8 candidates for three draws in four (rooitou_park's region
-/// tables, counted over the benchmark's draws), so that the window is
-/// found without the four-way steps that long conditionals need.
+/// vertex together (one read gives both); a conditional's vertices are
+/// packed pairs (column index, CDF value) in one `u32`, so that the window
+/// searched for u.x also holds the segment's ends; and each conditional
+/// has a guide over u.x that leaves at most 8 candidates for three draws
+/// in four (rooitou_park's region tables, counted over the benchmark's
+/// draws), so that the window is found without the four-way steps that
+/// long conditionals need.
 ///
 /// Storage: 12 bytes per marginal vertex, 1028 for the marginal's guide,
 /// 4 bytes per conditional vertex, 32 per marginal segment for its
