@@ -113,11 +113,11 @@ impl NormalGrid {
     pub fn node_of(&self, n: Vec3) -> usize {
         let column = match OctantColumns::new(self.columns) {
             Some(octants) => {
-                let (o, lo, hi) = octant_of(n.x, n.y);
+                let (o, odd, lo, hi) = octant_of(n.x, n.y);
                 let k = octants.per_octant;
                 let tangents = &octants.tangents[..k - 1];
                 o * k
-                    + if o % 2 == 0 {
+                    + if !odd {
                         tangents.partition_point(|&t| lo >= t * hi)
                     } else {
                         k - 1 - tangents.partition_point(|&t| !(lo <= t * hi))
@@ -202,17 +202,23 @@ fn pseudo_azimuth(x: f32, y: f32) -> f32 {
 }
 
 /// The octant of the azimuth of (x, y), counted from φ = 0 as φ grows
-/// (octant o covers φ ∈ [oπ/4, (o + 1)π/4]), with min(|x|, |y|) and
-/// max(|x|, |y|): their ratio is the tangent of the angle from the
-/// octant's start in the even octants, from its end in the odd ones. The
-/// octant comes from three signs and needs no division.
+/// (octant o covers φ ∈ [oπ/4, (o + 1)π/4]), whether it is odd, and
+/// min(|x|, |y|) and max(|x|, |y|): their ratio is the tangent of the
+/// angle from the octant's start in the even octants, from its end in the
+/// odd ones. The octant comes from three signs and needs no division; its
+/// parity, the parity of those signs, comes without waiting for it.
 #[inline(always)]
-fn octant_of(x: f32, y: f32) -> (usize, f32, f32) {
+fn octant_of(x: f32, y: f32) -> (usize, bool, f32, f32) {
     let (ax, ay) = (x.abs(), y.abs());
-    let steep = (ay > ax) as usize;
-    let upper = if x < 0.0 { 3 - steep } else { steep };
-    let o = if y < 0.0 { 7 - upper } else { upper };
-    (o, ax.min(ay), ax.max(ay))
+    let (x_negative, y_negative, steep) = (x < 0.0, y < 0.0, ay > ax);
+    let upper = if x_negative {
+        3 - steep as usize
+    } else {
+        steep as usize
+    };
+    let o = if y_negative { 7 - upper } else { upper };
+    let odd = x_negative ^ y_negative ^ steep;
+    (o, odd, ax.min(ay), ax.max(ay))
 }
 
 /// The column lookup of a grid whose column count C is a multiple of 8 and
@@ -257,12 +263,10 @@ impl OctantColumns {
     /// signs of min and max are flipped, so that one compare, min ≤ t_j
     /// max, holds where min ≥ t_j max does before the flip, and the column
     /// within the octant is the count of compares that hold (the padding,
-    /// NaN, fails every compare). The octant's parity, the parity of the
-    /// three signs that find it, is known before the octant itself.
+    /// NaN, fails every compare).
     #[inline(always)]
     fn column_of(&self, x: f32, y: f32) -> usize {
-        let (o, lo, hi) = octant_of(x, y);
-        let odd = (x < 0.0) ^ (y < 0.0) ^ (y.abs() > x.abs());
+        let (o, odd, lo, hi) = octant_of(x, y);
         let flip = ((!odd) as u32) << 31;
         let lo = f32::from_bits(lo.to_bits() ^ flip);
         let hi = f32::from_bits(hi.to_bits() ^ flip);
