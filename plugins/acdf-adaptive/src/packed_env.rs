@@ -527,17 +527,67 @@ pub(crate) fn quantise(masses: &[f64], q: u32) -> Vec<u32> {
 /// most [`SHORT_WINDOW`], whose pair is `<= key`, when the vertex after
 /// them is above the key (as the conditional guide's candidates are): the
 /// run of ones from the first bit of one compare of [`SHORT_WINDOW`]
-/// entries (it may reach into the padding after the conditionals).
+/// entries ([`short_window_mask`]; it may reach into the padding after
+/// the conditionals). A `data` without room for the window after `start`
+/// (none of the packed tables, whose padding leaves it) is compared entry
+/// by entry up to its end.
 #[inline(always)]
 fn count_short_window(data: &[u32], start: usize, len: usize, key: u32) -> usize {
-    let window = data
-        .get(start..start + SHORT_WINDOW)
-        .unwrap_or(&data[start.min(data.len())..]);
-    let mask = window
+    let mask = match data.get(start..start + SHORT_WINDOW) {
+        Some(window) => short_window_mask(
+            window.try_into().expect("a window of SHORT_WINDOW entries"),
+            key,
+        ),
+        None => data[start.min(data.len())..]
+            .iter()
+            .enumerate()
+            .fold(0u32, |m, (k, &e)| m | ((e <= key) as u32) << k),
+    };
+    (mask.trailing_ones() as usize).min(len)
+}
+
+/// Bit k set where `window[k] <= key` (unsigned), for a window of
+/// [`SHORT_WINDOW`]: on x86-64 two four-wide SSE2 compares (signed, after
+/// flipping the sign bits of both sides) and their sign bits, elsewhere
+/// [`short_window_mask_portable`]. A fixed-size window is what lets the
+/// compare be one step: over a slice of unknown length the compiler
+/// builds a loop with a remainder, several branches a draw.
+#[inline(always)]
+fn short_window_mask(window: &[u32; SHORT_WINDOW], key: u32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            __m128i, _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_loadu_si128, _mm_movemask_ps,
+            _mm_set1_epi32, _mm_xor_si128,
+        };
+        let p = window.as_ptr() as *const __m128i;
+        // SAFETY: SSE2 is part of the x86-64 baseline; the two unaligned
+        // loads read four u32 each, the eight entries of `window`.
+        let above = unsafe {
+            let sign = _mm_set1_epi32(i32::MIN);
+            let k = _mm_xor_si128(_mm_set1_epi32(key as i32), sign);
+            let above = |i: usize| {
+                let v = _mm_xor_si128(_mm_loadu_si128(p.add(i)), sign);
+                _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(v, k))) as u32
+            };
+            above(0) | above(1) << 4
+        };
+        !above & 0xff
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        short_window_mask_portable(window, key)
+    }
+}
+
+/// [`short_window_mask`] one entry at a time (on x86-64, for the test
+/// that compares the two).
+#[cfg(any(test, not(target_arch = "x86_64")))]
+fn short_window_mask_portable(window: &[u32; SHORT_WINDOW], key: u32) -> u32 {
+    window
         .iter()
         .enumerate()
-        .fold(0u32, |m, (k, &e)| m | ((e <= key) as u32) << k);
-    (mask.trailing_ones() as usize).min(len)
+        .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
 }
 
 /// The number of the packed vertices `data[start..start + len]` (CDF
@@ -641,6 +691,50 @@ mod tests {
                 w[5],
             ] {
                 assert_eq!(window_mask(&w, key), window_mask_portable(&w, key));
+            }
+        }
+    }
+
+    #[test]
+    fn short_window_masks_agree_with_the_portable_compare() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for _ in 0..2000 {
+            let w: [u32; SHORT_WINDOW] = std::array::from_fn(|_| rng.random());
+            for key in [
+                0,
+                1,
+                i32::MAX as u32,
+                1 << 31,
+                u32::MAX - 1,
+                u32::MAX,
+                rng.random(),
+                w[3],
+            ] {
+                assert_eq!(
+                    short_window_mask(&w, key),
+                    short_window_mask_portable(&w, key)
+                );
+            }
+        }
+    }
+
+    /// A short count over a list with no room for the window after it
+    /// compares up to the list's end and gives the plain count.
+    #[test]
+    fn short_counts_without_padding_stop_at_the_end() {
+        for len in 0..=SHORT_WINDOW {
+            let data: Vec<u32> = (0..len as u32).map(|i| (3 * i) << 16 | i).collect();
+            for start in 0..=len {
+                for k in 0..(3 * len as u32 + 2) {
+                    let key = k << 16 | 0xffff;
+                    let expected = data[start..].partition_point(|&e| e <= key);
+                    let n = len - start;
+                    assert_eq!(
+                        count_short_window(&data, start, n, key),
+                        expected,
+                        "{len} entries from {start}, key {k}"
+                    );
+                }
             }
         }
     }
