@@ -538,10 +538,7 @@ fn count_short_window(data: &[u32], start: usize, len: usize, key: u32) -> usize
             window.try_into().expect("a window of SHORT_WINDOW entries"),
             key,
         ),
-        None => data[start.min(data.len())..]
-            .iter()
-            .enumerate()
-            .fold(0u32, |m, (k, &e)| m | ((e <= key) as u32) << k),
+        None => mask_at_or_below(&data[start.min(data.len())..], key),
     };
     (mask.trailing_ones() as usize).min(len)
 }
@@ -549,7 +546,7 @@ fn count_short_window(data: &[u32], start: usize, len: usize, key: u32) -> usize
 /// Bit k set where `window[k] <= key` (unsigned), for a window of
 /// [`SHORT_WINDOW`]: on x86-64 two four-wide SSE2 compares (signed, after
 /// flipping the sign bits of both sides) and their sign bits, elsewhere
-/// [`short_window_mask_portable`]. A fixed-size window is what lets the
+/// [`mask_at_or_below`]. A fixed-size window is what lets the
 /// compare be one step: over a slice of unknown length the compiler
 /// builds a loop with a remainder, several branches a draw.
 #[inline(always)]
@@ -576,15 +573,14 @@ fn short_window_mask(window: &[u32; SHORT_WINDOW], key: u32) -> u32 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        short_window_mask_portable(window, key)
+        mask_at_or_below(window, key)
     }
 }
 
-/// [`short_window_mask`] one entry at a time (on x86-64, for the test
-/// that compares the two).
-#[cfg(any(test, not(target_arch = "x86_64")))]
-fn short_window_mask_portable(window: &[u32; SHORT_WINDOW], key: u32) -> u32 {
-    window
+/// Bit k set where `entries[k] <= key`, one entry at a time: the portable
+/// form of both window compares, for at most 32 entries.
+fn mask_at_or_below(entries: &[u32], key: u32) -> u32 {
+    entries
         .iter()
         .enumerate()
         .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
@@ -663,10 +659,7 @@ pub fn window_mask(window: &[u32; WINDOW_PAIRS], key: u32) -> u32 {
 
 /// [`window_mask`] one entry at a time.
 pub fn window_mask_portable(window: &[u32; WINDOW_PAIRS], key: u32) -> u32 {
-    window
-        .iter()
-        .enumerate()
-        .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
+    mask_at_or_below(window, key)
 }
 
 #[cfg(test)]
@@ -696,10 +689,7 @@ mod tests {
                 w[20],
             ] {
                 assert_eq!(window_mask(&w, key), window_mask_portable(&w, key));
-                assert_eq!(
-                    short_window_mask(short, key),
-                    short_window_mask_portable(short, key)
-                );
+                assert_eq!(short_window_mask(short, key), mask_at_or_below(short, key));
             }
         }
     }
