@@ -17,7 +17,14 @@
 //!
 //! `ACDF_ENV_TOLERANCE` sets the simplifier tolerance of the adaptive and
 //! oriented environment samplers (`--tolerance` of `acdf env-report`;
-//! default: the simplifier's own).
+//! default: the simplifier's own). `ACDF_ENV_NORMALS=K` cycles through the
+//! first K of the report's 34 normals only (each in a region of its own),
+//! which sets how many region tables the orientation-aware sampler's draws
+//! spread over:
+//!
+//! ```sh
+//! ACDF_ENV_NORMALS=8 cargo bench -p acdf --bench env -- oriented
+//! ```
 
 use std::hint::black_box;
 use std::sync::Arc;
@@ -66,7 +73,15 @@ fn uniforms(seed: u64) -> Vec<Vec2> {
 fn env(c: &mut Criterion) {
     let (label, map) = map();
     let u = uniforms(1);
-    let normals: Vec<Vec3> = acdf::env_report::standard_normals();
+    let mut normals: Vec<Vec3> = acdf::env_report::standard_normals();
+    if let Ok(k) = std::env::var("ACDF_ENV_NORMALS") {
+        let k: usize = k
+            .parse()
+            .ok()
+            .filter(|k| (1..=normals.len()).contains(k))
+            .unwrap_or_else(|| panic!("ACDF_ENV_NORMALS: a count from 1 to {}", normals.len()));
+        normals.truncate(k);
+    }
     let options = EnvSamplerOptions {
         tolerance: std::env::var("ACDF_ENV_TOLERANCE").ok().map(|t| {
             t.parse()
@@ -105,7 +120,7 @@ fn env(c: &mut Criterion) {
             });
             // One normal for every call: one region's table, warm in the
             // caches, so what is left is the work of a call.
-            let n = normals[1];
+            let n = normals[1.min(normals.len() - 1)];
             group.bench_function("oriented:dp, one normal", |b| {
                 b.iter(|| {
                     for &u in &u {
