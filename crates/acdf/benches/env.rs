@@ -93,9 +93,20 @@ fn env(c: &mut Criterion) {
     group.throughput(Throughput::Elements(CALLS as u64));
     for name in ["uniform", "adaptive:dp", "adaptive:chi2", "oriented:dp"] {
         let s = make_env_sampler(name, &map, &options).expect("builds");
-        // Build the cells the normals need before timing.
+        // Build the cells the normals need before timing, and say how much
+        // the draws spread over (the growth is the regions' tables; the
+        // plain samplers build nothing here).
+        let before = s.storage_bytes();
         for &n in &normals {
             s.pdf(Some(n), Vec3::Z);
+        }
+        let built = s.storage_bytes() - before;
+        if built > 0 {
+            eprintln!(
+                "{name}: the tables of the {} normals' regions take {:.1} KiB",
+                normals.len(),
+                built as f64 / 1024.0
+            );
         }
         group.bench_function(name, |b| {
             b.iter(|| {
