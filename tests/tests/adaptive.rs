@@ -5,9 +5,8 @@
 //! φ_h), with fewer draws, cells and outgoing directions than the default
 //! battery to stay within about a minute.
 
-use acdf_adaptive::{
-    simplifier_by_name, AdaptiveBrdfSampler, AdaptiveBuilder, AdaptiveCdf1D, AdaptiveCdf2D,
-};
+use acdf_adaptive::AdaptiveBrdfSampler;
+use acdf_adaptive_cdf::{simplifier_by_name, AdaptiveBuilder, AdaptiveCdf1D, AdaptiveCdf2D};
 use acdf_conformance::{
     distribution_1d_battery, distribution_2d_battery, sampler_battery, DistributionConfig,
     SamplerConfig,
@@ -113,7 +112,7 @@ fn positive_cells_keep_a_positive_density() {
     }
     table[5 * nx + 3] = 1.0;
     table[40 * nx + 9] = 0.5;
-    for entry in acdf_adaptive::simplify::SIMPLIFIERS {
+    for entry in acdf_adaptive_cdf::simplify::SIMPLIFIERS {
         let s = (entry.make)();
         for tolerance in [s.default_tolerance(), 100.0 * s.default_tolerance()] {
             let d = AdaptiveCdf2D::from_values(&table, nx, ny, &*s, tolerance).unwrap();

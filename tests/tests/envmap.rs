@@ -6,9 +6,8 @@
 
 use std::sync::Arc;
 
-use acdf_adaptive::{
-    adaptive_env_sampler, oriented_env_sampler, AdaptiveBuilder, OrientedEnvSampler,
-};
+use acdf_adaptive_cdf::AdaptiveBuilder;
+use acdf_adaptive_env::{adaptive_env_sampler, oriented_env_sampler, OrientedEnvSampler};
 use acdf_conformance::{
     assert_rejected, check_env_family, check_env_sampler, env_test_maps, env_test_normals, Check,
     EnvConfig, EnvTarget, Report,

@@ -9,12 +9,12 @@
 //! breakpoint, halfway to the next and next to the horizon, just below
 //! the φ_o seam at 2π.
 
-use acdf_adaptive::outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
-use acdf_adaptive::outgoing::FINE_PER_CELL;
-use acdf_adaptive::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
 use acdf_conformance::brdfs::GgxBrdf;
 use acdf_conformance::{check_sampler_family, sampler_battery, SamplerConfig};
 use acdf_core::{Brdf, Rgb};
+use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
+use acdf_outgoing::FINE_PER_CELL;
+use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
 use acdf_tabulated::Resolution;
 use std::sync::Arc;
 

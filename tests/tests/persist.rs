@@ -3,7 +3,8 @@
 //! is the tables plus a small header, and every kind of corruption gives a
 //! typed error without a panic.
 
-use acdf_adaptive::{AdaptiveBrdfSampler, AdaptiveBuilder};
+use acdf_adaptive::AdaptiveBrdfSampler;
+use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{BxdfSampler, Vec2};
 use acdf_tabulated::persist::{

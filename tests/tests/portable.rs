@@ -19,7 +19,7 @@
 //! with `ACDF_CPU=portable`, both runs take the same path; the test says so
 //! in a printed line and still compares.
 
-use acdf_adaptive::{AdaptiveCdf1D, AdaptiveCdf2D, DouglasPeucker};
+use acdf_adaptive_cdf::{AdaptiveCdf1D, AdaptiveCdf2D, DouglasPeucker};
 use acdf_core::cpu::{self, Features, PathLock};
 use acdf_core::search::{self, Guide};
 use acdf_core::{
@@ -520,9 +520,9 @@ fn outgoing_sampler_on_nickel() {
     let paths = lock();
     let mut rng = Pcg64::seed_from_u64(5);
     let nickel = acdf_materials::builtin("nickel").expect("built-in nickel");
-    let builder = acdf_adaptive::OutgoingBuilder::by_name("chi2", None, 64).unwrap();
+    let builder = acdf_outgoing::OutgoingBuilder::by_name("chi2", None, 64).unwrap();
     let resolution = Resolution::new(16, 1, 64, 16).unwrap();
-    let plain = acdf_adaptive::OutgoingSampler::new(nickel, resolution, builder).unwrap();
+    let plain = acdf_outgoing::OutgoingSampler::new(nickel, resolution, builder).unwrap();
     let mut compared = compare_sampler(&paths, "outgoing:chi2", &plain, &mut rng);
     let mixed = plain.with_cosine_mix(0.1).unwrap();
     compared += compare_sampler(&paths, "outgoing:chi2+cosine", &mixed, &mut rng);
@@ -565,7 +565,7 @@ fn environment_samplers_on_a_map() {
     ]);
     let u = points(&mut rng, normals.len(), 64, 32);
     let u = &u[..normals.len()];
-    let builder = || acdf_adaptive::AdaptiveBuilder::by_name("dp", None).unwrap();
+    let builder = || acdf_adaptive_cdf::AdaptiveBuilder::by_name("dp", None).unwrap();
     let grid = acdf_lights::NormalGrid::new(4, 8).unwrap();
     let samplers: Vec<(&str, Box<dyn SphereSampler>)> = vec![
         (
@@ -577,7 +577,7 @@ fn environment_samplers_on_a_map() {
         (
             "adaptive:dp",
             Box::new(
-                acdf_adaptive::adaptive_env_sampler(
+                acdf_adaptive_env::adaptive_env_sampler(
                     &map,
                     acdf_lights::TableKind::Luminance,
                     &builder(),
@@ -588,13 +588,14 @@ fn environment_samplers_on_a_map() {
         (
             "oriented:dp",
             Box::new(
-                acdf_adaptive::oriented_env_sampler(map.clone(), builder(), grid, 0.0).unwrap(),
+                acdf_adaptive_env::oriented_env_sampler(map.clone(), builder(), grid, 0.0).unwrap(),
             ),
         ),
         (
             "oriented:dp defensive",
             Box::new(
-                acdf_adaptive::oriented_env_sampler(map.clone(), builder(), grid, 0.25).unwrap(),
+                acdf_adaptive_env::oriented_env_sampler(map.clone(), builder(), grid, 0.25)
+                    .unwrap(),
             ),
         ),
         // Columns found by octant compares with three tangents, and by
@@ -602,7 +603,7 @@ fn environment_samplers_on_a_map() {
         (
             "oriented:dp 4x32",
             Box::new(
-                acdf_adaptive::oriented_env_sampler(
+                acdf_adaptive_env::oriented_env_sampler(
                     map.clone(),
                     builder(),
                     acdf_lights::NormalGrid::new(4, 32).unwrap(),
@@ -614,7 +615,7 @@ fn environment_samplers_on_a_map() {
         (
             "oriented:dp 3x12",
             Box::new(
-                acdf_adaptive::oriented_env_sampler(
+                acdf_adaptive_env::oriented_env_sampler(
                     map.clone(),
                     builder(),
                     acdf_lights::NormalGrid::new(3, 12).unwrap(),

@@ -20,7 +20,8 @@
 //! battery's. The tests print `skipping: ...` and pass when the shared data
 //! is absent.
 
-use acdf_adaptive::{AdaptiveBrdfSampler, AdaptiveBuilder};
+use acdf_adaptive::AdaptiveBrdfSampler;
+use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{missed_share, Brdf, BxdfSampler};
 use acdf_tabulated::Resolution;

@@ -4,14 +4,15 @@
 
 use acdf::env::Sky;
 use acdf::registry::report_samplers;
-use acdf::report::{report_material, ReportPlan};
 use acdf::spec::SamplerAt;
 use acdf::spec::DEFAULT_REPORT_MATERIALS;
-use acdf::sweep::{run_sweep, sweep_tolerances, SweepPlan};
-use acdf::{EfficiencyConfig, SamplerOptions, SamplerSpec, SimplifierName};
+use acdf::{SamplerOptions, SamplerSpec, SimplifierName};
+use acdf_experiments::report::{report_material, ReportPlan};
+use acdf_experiments::sweep::{run_sweep, sweep_tolerances, SweepPlan};
+use acdf_experiments::EfficiencyConfig;
 use pyo3::prelude::*;
 
-use acdf::target::check_target;
+use acdf_experiments::target::check_target;
 
 use crate::errors::{raise, IntoPyResult};
 use crate::interrupt::cancellable;

@@ -16,7 +16,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
 use acdf::spec::SamplerAt;
-use acdf::target::{build_for_target, check_target, TargetOutcome};
+use acdf_experiments::target::{build_for_target, check_target, TargetOutcome};
 
 use crate::arrays::{common_len, direction_pair, read, Rows, CHUNK, PARALLEL_MIN};
 use crate::errors::{raise, require_file, IntoPyResult};

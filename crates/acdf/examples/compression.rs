@@ -22,7 +22,8 @@
 //! largest fraction of the integrand where a sampler's pdf is 0 (bias; it
 //! should be 0).
 
-use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder};
+use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler};
+use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::geometry::spherical_direction;
 use acdf_core::{Brdf, BxdfSampler, Distribution2D, HemisphereGrid, Integrand, Vec2, Vec3};
 use acdf_tabulated::tabulate::tabulate_slice;
@@ -207,7 +208,7 @@ fn main() {
         for name in &o.simplifiers {
             let tolerances = match &o.tolerances {
                 Some(t) => t.clone(),
-                None => vec![acdf_adaptive::simplifier_by_name(name)
+                None => vec![acdf_adaptive_cdf::simplifier_by_name(name)
                     .expect("simplifier")
                     .default_tolerance()],
             };

@@ -5,16 +5,16 @@
 //! parsing, [`env_sampler_names`]), their help and error texts, the default
 //! set of `env-report` and building ([`make_env_sampler`]) derive. The
 //! families with simplifiers take their names from the adaptive plug-in's
-//! table ([`SIMPLIFIERS`](acdf_adaptive::simplify::SIMPLIFIERS)), as the
+//! table ([`SIMPLIFIERS`](acdf_adaptive_cdf::simplify::SIMPLIFIERS)), as the
 //! BRDF registry ([`SAMPLERS`](crate::registry::SAMPLERS)) does.
 
 use std::fmt;
 use std::str::FromStr;
 use std::sync::Arc;
 
-use acdf_adaptive::{
-    adaptive_env_sampler, oriented_env_sampler, AdaptiveBuilder, AdaptiveEnvSampler,
-    OrientedEnvSampler,
+use acdf_adaptive_cdf::AdaptiveBuilder;
+use acdf_adaptive_env::{
+    adaptive_env_sampler, oriented_env_sampler, AdaptiveEnvSampler, OrientedEnvSampler,
 };
 use acdf_core::{SphereSample, SphereSampler, Vec2, Vec3};
 use acdf_lights::{EnvMap, NormalGrid, TableKind};

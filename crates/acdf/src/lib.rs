@@ -1,25 +1,15 @@
-//! `acdf` is the facade of the acdf workspace and the home of its
-//! experiments. It names materials and samplers the way the `acdf` command
-//! does ([`spec`], [`material`], [`registry`]), and holds everything the
-//! command measures, so that tests and other tools call the same code:
-//! the estimator efficiency of a sampler under an environment light
-//! ([`efficiency`]), the per-material results table ([`report`]), the
-//! tolerance sweep of the adaptive simplifiers ([`sweep`]), the renderer
-//! of a sphere under an environment map with BRDF, light and multiple
-//! importance sampling ([`render`]), its scene for Mitsuba 3 ([`mitsuba`])
-//! and the figures ([`plot`]). Environment maps get
-//! the same: a registry of environment samplers by name ([`env_registry`])
-//! and the storage and irradiance-variance report of `acdf env-report`
-//! ([`env_report`]).
+//! `acdf` is the library facade of the acdf workspace: it names materials
+//! and samplers the way the `acdf` command does ([`spec`], [`material`],
+//! [`registry`]) and builds them, so that a renderer, a test or the Python
+//! package asks for `adaptive:chi2` or `builtin:nickel` by name and gets the
+//! same sampler the command would. Environment maps get the same: a
+//! registry of environment samplers by name ([`env_registry`]), and the
+//! procedural sky that the efficiency measure lights materials with
+//! ([`env`](mod@env)).
 //!
-//! Estimator efficiency is 1 / (r · t_s): r the relative variance of the
-//! one-sample estimator of reflected luminance under the procedural sky,
-//! computed by quadrature (no sampling noise) and averaged over twelve fixed
-//! outgoing directions, and t_s the time of the sampler's own work, one
-//! `sample` plus, for a successful draw, one `pdf` call. The exact
-//! definition is in [`efficiency`]; [`target`] searches a simplifier's
-//! tolerance for a given efficiency, and [`survey`] measures every sampler
-//! on all 100 MERL materials.
+//! The measurements (efficiency, the results table, sweeps, the survey,
+//! the environment report) are the crate `acdf-experiments`; the renderer
+//! is `acdf-render`; the command line is `acdf-cli`.
 //!
 //! # Examples
 //!
@@ -67,23 +57,13 @@ pub use acdf_materials as materials;
 pub use acdf_tabulated as tabulated;
 pub use acdf_uniform as uniform;
 
-pub mod efficiency;
 pub mod env;
 pub mod env_registry;
-pub mod env_report;
 pub mod error;
 pub mod material;
-pub mod mitsuba;
-pub mod plot;
 pub mod registry;
-pub mod render;
-pub mod report;
 pub mod spec;
-pub mod survey;
-pub mod sweep;
-pub mod target;
 
-pub use efficiency::{measure_efficiencies, measure_efficiency, Efficiency, EfficiencyConfig};
 pub use env::{Environment, Sky};
 pub use error::{Error, Result};
 pub use material::{load_material, Material};

@@ -5,7 +5,7 @@
 //! `acdf report` and `acdf render`, building ([`make_sampler`]) and loading
 //! ([`load_sampler`]) derive. The adaptive family's names come from the
 //! adaptive plug-in's own table of simplifiers
-//! ([`SIMPLIFIERS`](acdf_adaptive::simplify::SIMPLIFIERS)).
+//! ([`SIMPLIFIERS`](acdf_adaptive_cdf::simplify::SIMPLIFIERS)).
 //!
 //! The operations the registry needs beyond sampling (building every table,
 //! the resolution label, the material a table was built for, the mean kept
@@ -21,14 +21,13 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use acdf_adaptive::outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
-use acdf_adaptive::outgoing::FINE_PER_CELL;
-use acdf_adaptive::{
-    average_resolution, AdaptiveBrdfSampler, AdaptiveBuilder, AnisotropicOutgoingSampler,
-    OutgoingBuilder, OutgoingSampler,
-};
+use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler};
+use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
+use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
+use acdf_outgoing::FINE_PER_CELL;
+use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
 use acdf_rgl::RglSampler;
 use acdf_tabulated::persist::{self, PersistError};
 use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
@@ -380,7 +379,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         report_rank: None,
         in_render: false,
         requires: None,
-        file_kind: Some(acdf_adaptive::outgoing::persist::KIND),
+        file_kind: Some(acdf_outgoing::persist::KIND),
         build: |spec, m, o| {
             let simplifier = spec
                 .simplifier()
@@ -402,7 +401,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
             }
         },
         load: Some(|bytes| {
-            if acdf_adaptive::outgoing::anisotropic::persist::is_anisotropic(bytes)? {
+            if acdf_outgoing::anisotropic::persist::is_anisotropic(bytes)? {
                 Ok(AnisotropicOutgoingSampler::from_bytes(bytes)?.into())
             } else {
                 Ok(OutgoingSampler::from_bytes(bytes)?.into())
@@ -461,7 +460,7 @@ fn named(saved_only: bool) -> Vec<(String, String)> {
                 format!("{}; alone, {}:{first}", f.description, f.name),
             ));
             out.extend(
-                acdf_adaptive::simplify::SIMPLIFIERS
+                acdf_adaptive_cdf::simplify::SIMPLIFIERS
                     .iter()
                     .map(|e| (format!("{}:{}", f.name, e.name), e.description.to_string())),
             );

@@ -10,7 +10,9 @@ use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
 
-use acdf_adaptive::simplify::{simplifier_entry, SimplifierEntry, SIMPLIFIERS, SIMPLIFIER_NAMES};
+use acdf_adaptive_cdf::simplify::{
+    simplifier_entry, SimplifierEntry, SIMPLIFIERS, SIMPLIFIER_NAMES,
+};
 use acdf_tabulated::Resolution;
 
 use crate::error::Error;
@@ -107,7 +109,7 @@ impl MaterialSpec {
 
 /// A simplifier of the adaptive sampler, by its command-line name: a checked
 /// handle to an entry of the adaptive plug-in's table
-/// ([`acdf_adaptive::simplify::SIMPLIFIERS`]), the one list of
+/// ([`acdf_adaptive_cdf::simplify::SIMPLIFIERS`]), the one list of
 /// simplifier names from which parsing, help texts and error messages
 /// derive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

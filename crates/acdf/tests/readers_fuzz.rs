@@ -21,10 +21,10 @@ use std::sync::OnceLock;
 use acdf::materials::merl::MerlTable;
 use acdf::materials::nbrdf::{NbrdfLibrary, WEIGHTS_PER_MATERIAL};
 use acdf::materials::rgl::{write_tensor_file, Dtype, RglBrdf, TensorFile};
-use acdf_adaptive::{
-    AdaptiveBrdfSampler, AdaptiveBuilder, AnisotropicOutgoingSampler, OutgoingBuilder,
-};
+use acdf_adaptive::AdaptiveBrdfSampler;
+use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::{Brdf, BxdfSampler, Vec2, Vec3};
+use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder};
 use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
 use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
 use proptest::prelude::*;

@@ -8,7 +8,9 @@
 //! `sample`, `sample_batch` and `pdf`. `acdf bench` times the uniform
 //! table of the same slice beside it.
 
-use acdf_adaptive::{AdaptiveBuilder, AdaptiveCdf1D, AdaptiveCdf2D, DouglasPeucker, Simplifier};
+use acdf_adaptive_cdf::{
+    AdaptiveBuilder, AdaptiveCdf1D, AdaptiveCdf2D, DouglasPeucker, Simplifier,
+};
 use acdf_core::{Distribution1D, Distribution2D, Sample1D, Sample2D, Vec2};
 use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, SliceDistribution};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};

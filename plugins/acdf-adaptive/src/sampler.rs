@@ -2,63 +2,10 @@
 //! tabulated sampler, whose slices are [`AdaptiveCdf2D`]s built from the
 //! tabulated half-vector values.
 
-use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
-use crate::AdaptiveCdf2D;
+use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::{Brdf, Result};
-use acdf_tabulated::{Resolution, SliceBuilder, TabulatedBrdfSampler};
+use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
 use std::sync::Arc;
-
-/// Builds an [`AdaptiveCdf2D`] per tabulated slice: the marginal over θ_h
-/// (rows) and the conditionals over φ_h (columns) simplified by `simplifier`
-/// at `tolerance`, with the first θ_h row pinned
-/// ([`AdaptiveCdf2D::from_values_pinned`]).
-#[derive(Debug, Clone)]
-pub struct AdaptiveBuilder {
-    pub simplifier: Arc<dyn Simplifier>,
-    pub tolerance: f64,
-}
-
-impl AdaptiveBuilder {
-    /// A builder with the given simplifier and tolerance (an error for a
-    /// negative or NaN tolerance).
-    pub fn new(simplifier: Arc<dyn Simplifier>, tolerance: f64) -> Result<Self> {
-        validate_tolerance(tolerance)?;
-        Ok(Self {
-            simplifier,
-            tolerance,
-        })
-    }
-
-    /// The simplifier called `name` at `tolerance`, or at its default
-    /// tolerance when `None`.
-    pub fn by_name(name: &str, tolerance: Option<f64>) -> Result<Self> {
-        let simplifier = simplifier_by_name(name)?;
-        let tolerance = tolerance.unwrap_or_else(|| simplifier.default_tolerance());
-        Self::new(simplifier, tolerance)
-    }
-}
-
-impl SliceBuilder for AdaptiveBuilder {
-    type Dist = AdaptiveCdf2D;
-
-    /// `adaptive:<simplifier>`, e.g. `adaptive:optimal`.
-    fn name(&self) -> String {
-        format!("adaptive:{}", self.simplifier.name())
-    }
-
-    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<AdaptiveCdf2D> {
-        // The first θ_h row stays on its own: see
-        // `AdaptiveCdf2D::from_values_pinned`.
-        AdaptiveCdf2D::from_values_pinned(
-            values,
-            n_phi_h,
-            n_theta_h,
-            &*self.simplifier,
-            self.tolerance,
-            1,
-        )
-    }
-}
 
 /// The adaptive sampler: tabulation, cell lookup, cosine mixing and lazy
 /// building are `acdf-tabulated`'s; only the slice distribution differs.

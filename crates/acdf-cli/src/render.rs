@@ -1,0 +1,719 @@
+//! `acdf render`: a sphere (optionally on a ground plane) lit by an
+//! environment map, rendered with BRDF sampling, light sampling and their
+//! MIS combinations, compared with a reference; or, with
+//! `--export-mitsuba`, the same scene written for Mitsuba 3.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use acdf::env::{Environment, Sky};
+use acdf::env_registry::{make_env_sampler, AnyEnvSampler, EnvSamplerOptions};
+use acdf::error::{Error, Result};
+use acdf::lights::{EnvMap, EnvironmentLight};
+use acdf::material::Material;
+use acdf::registry::{make_sampler, sampler_help, AnySampler, SamplerOps};
+use acdf_core::{BxdfSampler, Rgb, SphereSampler, Vec3};
+use acdf_experiments::plot::{Figure, Panel, Series, Style};
+use acdf_materials::analytic::Lambert;
+use acdf_render::render::{
+    render, render_memory_estimate, Budget, Camera, Film, Geometry, Progress, Rendered, Shader,
+    Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO,
+};
+
+use crate::common::{bar, file_stem_safe, material, spinner, stdout, MaterialArgs, TableArgs};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    material: MaterialArgs,
+    /// An .exr or .hdr latitude-longitude environment map, +z up (default:
+    /// the procedural sky with a sun, baked into a 512x256 map).
+    #[arg(long, value_name = "FILE")]
+    envmap: Option<PathBuf>,
+    /// Put the sphere on a square ground plane (a Lambertian grey).
+    #[arg(long)]
+    plane: bool,
+    // The help lists every sampler, from the registry.
+    #[arg(long, value_name = "NAME", default_value = "adaptive", help = brdf_help())]
+    brdf_sampler: String,
+    /// The environment sampler of light sampling (any of `acdf env-sample
+    /// --help`: uniform, adaptive:S, oriented:S, ...).
+    #[arg(long, value_name = "NAME", default_value = "adaptive")]
+    env_sampler: String,
+    /// The environment sampler MIS pairs with the BRDF sampler (default:
+    /// the compensated form of --env-sampler: uniform-comp for uniform,
+    /// adaptive-comp:S for adaptive:S, the sampler itself otherwise).
+    #[arg(long, value_name = "NAME")]
+    mis_env_sampler: Option<String>,
+    // The help names every strategy, from `Strategy::ALL`.
+    #[arg(long, value_name = "LIST", default_value_t = Strategy::all_names(), help = strategies_help())]
+    strategies: String,
+    /// The probability c with which mis-one-sample draws from the BRDF
+    /// sampler (the environment sampler otherwise), in [0, 1]; each draw is
+    /// divided by the mixture density c p_brdf + (1 - c) p_light.
+    #[arg(long, value_name = "C", default_value_t = DEFAULT_MIS_FRACTION)]
+    mis_fraction: f32,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 128)]
+    width: usize,
+    /// Image height in pixels (default: the width).
+    #[arg(long)]
+    height: Option<usize>,
+    /// Samples per pixel of each strategy: the equal-sample table.
+    #[arg(long, default_value_t = 16)]
+    spp: usize,
+    /// Seconds of rendering per strategy, after --spp: the equal-time table
+    /// (wall clock, on every thread). The equal-CPU-time table, printed
+    /// always, instead scales the RMSE at --spp to S seconds (1 without
+    /// --seconds) of one thread by each strategy's CPU time per camera
+    /// sample, the fastest of --timing-repeats passes on one thread:
+    /// RMSE_at_spp * sqrt(spp * pixels * t_sample / S). A thread that waits
+    /// for a core does not advance its CPU clock, so it depends less on the
+    /// machine's load than the wall-clock table.
+    #[arg(long, value_name = "S")]
+    seconds: Option<f64>,
+    /// Timed passes (at least 8192 camera samples each) of the CPU time per
+    /// camera sample, at least 1; the fastest counts.
+    #[arg(long, value_name = "N", default_value_t = 9)]
+    timing_repeats: usize,
+    /// Samples per pixel of the reference (MIS with the power heuristic),
+    /// computed once and cached in the output directory.
+    #[arg(long, default_value_t = 1024)]
+    ref_spp: usize,
+    /// A reference image (linear OpenEXR of the same size) instead.
+    #[arg(long, value_name = "FILE.exr")]
+    reference: Option<PathBuf>,
+    /// Exposure applied before clamping and sRGB encoding.
+    #[arg(long, default_value_t = 1.0)]
+    exposure: f32,
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "out")]
+    out: PathBuf,
+    /// Seed of the uniform numbers.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Threads (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Write the scene for Mitsuba 3 (DIR/scene.xml, DIR/envmap.exr) and
+    /// stop; the material must be an RGL .bsdf file or builtin:lambert.
+    #[arg(long, value_name = "DIR")]
+    export_mitsuba: Option<PathBuf>,
+    #[command(flatten)]
+    tables: TableArgs,
+}
+
+fn strategies_help() -> String {
+    format!(
+        "Strategies, comma-separated: {}. brdf and light draw from one sampler; \
+         mis-balance and mis-power draw once from each and weigh the two by their heuristic; \
+         mis-one-sample draws once, from the BRDF sampler with probability --mis-fraction, \
+         and divides by the mixture density; mis-adaptive is mis-one-sample with c chosen per \
+         pixel, among {}, as the one whose second moment the pixel's earlier samples estimate \
+         the least",
+        Strategy::all_names().replace(',', ", "),
+        acdf_render::render::FRACTIONS
+            .map(|c| c.to_string())
+            .join(", ")
+    )
+}
+
+fn brdf_help() -> String {
+    format!(
+        "The BRDF sampler of BRDF sampling and of MIS. {}",
+        sampler_help(false)
+    )
+}
+
+/// The longest `--seconds` accepted: a year.
+const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
+
+/// The side of the map the procedural sky is baked into (width; the height
+/// is half).
+const SKY_MAP_WIDTH: usize = 512;
+
+/// One strategy's result.
+struct Result1 {
+    strategy: Strategy,
+    samplers: String,
+    rendered: Rendered,
+    rmse_at_spp: f64,
+    rmse_last: f64,
+    /// CPU seconds per camera sample on one thread, fastest of the repeats.
+    seconds_per_sample: f64,
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let height = check_sizes(&a)?;
+    let strategies = parse_strategies(&a.strategies)?;
+    let m = material(&a.material)?;
+    let map = Arc::new(match &a.envmap {
+        Some(p) => EnvMap::open(p)?,
+        None => sky_map()?,
+    });
+    if let Some(dir) = &a.export_mitsuba {
+        let path = acdf_render::mitsuba::export(
+            dir,
+            &acdf_render::mitsuba::ExportScene {
+                material: &m.spec,
+                map: &map,
+                plane: a.plane,
+                width: a.width,
+                height,
+                spp: a.spp,
+            },
+        )?;
+        eprintln!("wrote {}", path.display());
+        return Ok(());
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads)
+        .build()
+        .map_err(|e| Error::InvalidArgument {
+            what: "threads",
+            value: a.threads.to_string(),
+            reason: e.to_string(),
+        })?;
+    pool.install(|| run_scene(&a, height, &strategies, &m, map))
+}
+
+fn run_scene(
+    a: &Args,
+    height: usize,
+    strategies: &[Strategy],
+    m: &Material,
+    map: Arc<EnvMap>,
+) -> Result<()> {
+    let options = a.tables.options()?;
+    let env_options = EnvSamplerOptions::default();
+    let mis_env_name = a
+        .mis_env_sampler
+        .clone()
+        .unwrap_or_else(|| compensated_name(&a.env_sampler));
+    let pb = spinner(&format!(
+        "building {}, {}, {}",
+        a.brdf_sampler, a.env_sampler, mis_env_name
+    ));
+    let brdf_sampler = make_sampler(&a.brdf_sampler, m, &options)?;
+    brdf_sampler.build_all()?;
+    let env = make_env_sampler(&a.env_sampler, &map, &env_options)?;
+    let mis_env = make_env_sampler(&mis_env_name, &map, &env_options)?;
+    pb.finish_and_clear();
+    let light = EnvironmentLight::new(map.clone(), env);
+    let mis_light = EnvironmentLight::new(map.clone(), mis_env);
+    let plane_brdf =
+        Lambert::new("plane", Rgb::splat(PLANE_ALBEDO)).map_err(|e| Error::Material {
+            spec: "the ground plane".into(),
+            message: e.to_string(),
+        })?;
+    let plane = Surface {
+        brdf: &plane_brdf,
+        sampler: &acdf::cosine::CosineSampler,
+    };
+    let sphere = Surface {
+        brdf: m.brdf.as_ref(),
+        sampler: &brdf_sampler,
+    };
+    let geometry = Geometry { plane: a.plane };
+    let shader = |strategy: Strategy| Shader {
+        geometry,
+        sphere,
+        plane,
+        light: if strategy.is_mis() {
+            &mis_light
+        } else {
+            &light
+        },
+        strategy,
+        mis_fraction: a.mis_fraction,
+    };
+    let camera = Camera::default();
+    let size = (a.width, height);
+    std::fs::create_dir_all(&a.out).map_err(|e| Error::io(&a.out, e))?;
+    let label = file_stem_safe(&m.label());
+    let samplers_of = |s: Strategy| match s {
+        Strategy::Brdf => a.brdf_sampler.clone(),
+        Strategy::Light => light.sampler().name().to_string(),
+        Strategy::Adaptive => format!(
+            "{}+{} c per pixel",
+            a.brdf_sampler,
+            mis_light.sampler().name()
+        ),
+        Strategy::OneSample => format!(
+            "{}+{} c={}",
+            a.brdf_sampler,
+            mis_light.sampler().name(),
+            a.mis_fraction
+        ),
+        _ => format!("{}+{}", a.brdf_sampler, mis_light.sampler().name()),
+    };
+
+    // The reference.
+    let reference = match &a.reference {
+        Some(p) => read_exr(p, size)?,
+        None => {
+            let key = format!(
+                "acdf render reference v1: material {} envmap {:?} size {}x{} plane {} spp {} seed {} samplers {}+{} tables {:?}",
+                m.spec, a.envmap, size.0, size.1, a.plane, a.ref_spp, a.seed,
+                a.brdf_sampler, mis_env_name, options
+            );
+            let exr = a.out.join(format!("{label}-reference.exr"));
+            let key_path = a.out.join(format!("{label}-reference.key"));
+            let cached = std::fs::read_to_string(&key_path).ok().as_deref() == Some(key.as_str());
+            if cached && exr.exists() {
+                eprintln!("reference: cached {}", exr.display());
+                read_exr(&exr, size)?
+            } else {
+                let pb = bar(100, &format!("reference ({} spp)", a.ref_spp));
+                let r = render(
+                    &shader(Strategy::Power),
+                    &camera,
+                    size,
+                    Budget {
+                        spp: a.ref_spp,
+                        time: None,
+                    },
+                    a.seed ^ 0xA5A5_5A5A,
+                    None,
+                    |f| pb.set_position((f * 100.0) as u64),
+                );
+                pb.finish_and_clear();
+                eprintln!(
+                    "reference: {} spp of mis-power in {:.1} s",
+                    a.ref_spp, r.seconds
+                );
+                write_exr(&exr, &r.last)?;
+                acdf_core::fsio::write_atomic(&key_path, |w| w.write_all(key.as_bytes()))?;
+                r.last
+            }
+        }
+    };
+
+    let mut results = Vec::new();
+    for &strategy in strategies {
+        let pb = bar(
+            100,
+            &format!("{} ({})", strategy.name(), samplers_of(strategy)),
+        );
+        let r = render(
+            &shader(strategy),
+            &camera,
+            size,
+            Budget {
+                spp: a.spp,
+                time: a.seconds.map(Duration::from_secs_f64),
+            },
+            a.seed,
+            Some(&reference),
+            |f| pb.set_position((f * 100.0) as u64),
+        );
+        pb.finish_and_clear();
+        // After the render, so that tables built on first use are built.
+        let seconds_per_sample = shader(strategy).seconds_per_camera_sample(
+            &camera,
+            size,
+            a.seed,
+            a.timing_repeats,
+            Some(r.last.moments()),
+        );
+        let rmse_at_spp = r.at_spp.rmse(&reference).unwrap_or(f64::NAN);
+        let rmse_last = r.last.rmse(&reference).unwrap_or(f64::NAN);
+        results.push(Result1 {
+            strategy,
+            samplers: samplers_of(strategy),
+            rendered: r,
+            rmse_at_spp,
+            rmse_last,
+            seconds_per_sample,
+        });
+    }
+
+    let mut written = Vec::new();
+    // Per strategy: EXR and PNG of the final film; the side-by-side.
+    let ref_png = a.out.join(format!("{label}-reference.png"));
+    acdf_experiments::plot::write_png(&ref_png, &reference.to_rgb8(a.exposure))?;
+    written.push(ref_png);
+    let err_scale = error_scale(&results);
+    let mut tiles = vec![("reference".to_string(), reference.to_rgb8(a.exposure))];
+    let mut errors = vec![(
+        format!("white: error {err_scale:.3}"),
+        image::RgbImage::from_pixel(a.width as u32, height as u32, image::Rgb([255, 255, 255])),
+    )];
+    for r in &results {
+        let film = &r.rendered.last;
+        let stem = format!("{label}-{}", r.strategy.name());
+        let exr = a.out.join(format!("{stem}.exr"));
+        write_exr(&exr, film)?;
+        let png = a.out.join(format!("{stem}.png"));
+        let img = film.to_rgb8(a.exposure);
+        acdf_experiments::plot::write_png(&png, &img)?;
+        written.extend([exr, png]);
+        tiles.push((r.strategy.name().to_string(), img));
+        errors.push((
+            format!("{} spp {:.4}", film.samples_per_pixel(), r.rmse_last),
+            film.error_image(&reference, err_scale),
+        ));
+    }
+    let side = stack(
+        &acdf_experiments::plot::side_by_side(&tiles)?,
+        &acdf_experiments::plot::side_by_side(&errors)?,
+    );
+    let side_path = a.out.join(format!("{label}-side-by-side.png"));
+    acdf_experiments::plot::write_png(&side_path, &side)?;
+    written.push(side_path);
+    written.extend(convergence_plot(a, &label, m, &results)?);
+
+    print_tables(a, size, m, &brdf_sampler, &light, &mis_light, &results)?;
+    for p in written {
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+/// The scale of the error maps: four times the smallest RMSE, so that
+/// the best strategy's errors show and worse ones saturate.
+fn error_scale(results: &[Result1]) -> f32 {
+    let m = results
+        .iter()
+        .map(|r| r.rmse_last)
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    if m.is_finite() {
+        (4.0 * m) as f32
+    } else {
+        1.0
+    }
+}
+
+/// `top` above `bottom`, on white.
+fn stack(top: &image::RgbImage, bottom: &image::RgbImage) -> image::RgbImage {
+    let w = top.width().max(bottom.width());
+    let mut out =
+        image::RgbImage::from_pixel(w, top.height() + bottom.height(), image::Rgb([255; 3]));
+    image::imageops::replace(&mut out, top, 0, 0);
+    image::imageops::replace(&mut out, bottom, 0, top.height() as i64);
+    out
+}
+
+fn convergence_plot(
+    a: &Args,
+    label: &str,
+    m: &Material,
+    results: &[Result1],
+) -> Result<Vec<PathBuf>> {
+    let series = results
+        .iter()
+        .map(|r| Series {
+            label: format!("{} ({})", r.strategy.name(), r.samplers),
+            points: r
+                .rendered
+                .curve
+                .iter()
+                .map(|p: &Progress| (p.seconds, p.rmse))
+                .collect(),
+            style: Style::Line,
+        })
+        .collect();
+    let figure = Figure {
+        title: format!(
+            "{}: RMSE against rendering time ({})",
+            m.label(),
+            a.envmap
+                .as_deref()
+                .and_then(Path::file_stem)
+                .map_or("procedural sky".into(), |s| s
+                    .to_string_lossy()
+                    .into_owned())
+        ),
+        panels: vec![Panel {
+            x_label: "seconds".into(),
+            y_label: "RMSE (linear radiance)".into(),
+            series,
+            markers: vec![],
+            notes: vec![],
+            legend: true,
+        }],
+    };
+    let png = a.out.join(format!("{label}-convergence.png"));
+    let svg = a.out.join(format!("{label}-convergence.svg"));
+    let (svg_text, png_bytes) = acdf_experiments::plot::figure_bytes(&figure, &png)?;
+    acdf_core::fsio::write_atomic(&png, |w| w.write_all(&png_bytes))?;
+    acdf_core::fsio::write_atomic(&svg, |w| w.write_all(svg_text.as_bytes()))?;
+    Ok(vec![png, svg])
+}
+
+#[allow(clippy::too_many_arguments)]
+fn print_tables(
+    a: &Args,
+    size: (usize, usize),
+    m: &Material,
+    brdf: &AnySampler,
+    light: &EnvironmentLight<AnyEnvSampler>,
+    mis_light: &EnvironmentLight<AnyEnvSampler>,
+    results: &[Result1],
+) -> Result<()> {
+    let mut out = stdout();
+    let pixels = (size.0 * size.1) as f64;
+    writeln!(
+        out,
+        "{} under {}, {}x{} px{}; storage: {} {} B, {} {} B, {} {} B",
+        m.label(),
+        a.envmap
+            .as_deref()
+            .map_or("the procedural sky".into(), |p| p.display().to_string()),
+        size.0,
+        size.1,
+        if a.plane { ", ground plane" } else { "" },
+        a.brdf_sampler,
+        BxdfSampler::storage_bytes(brdf),
+        light.sampler().name(),
+        light.sampler().storage_bytes(),
+        mis_light.sampler().name(),
+        mis_light.sampler().storage_bytes(),
+    )?;
+    let best_single = |rmse: fn(&Result1) -> f64| {
+        results
+            .iter()
+            .filter(|r| !r.strategy.is_mis())
+            .map(rmse)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let table = |out: &mut dyn Write,
+                 title: String,
+                 rmse: fn(&Result1) -> f64,
+                 spp: fn(&Result1) -> usize,
+                 seconds: fn(&Result1) -> f64|
+     -> std::io::Result<()> {
+        writeln!(out, "{title}")?;
+        writeln!(
+            out,
+            "strategy,samplers,spp,seconds,rmse,rmse_vs_best_single,camera_samples_per_s"
+        )?;
+        let best = best_single(rmse);
+        for r in results {
+            let rel = if best.is_finite() && best > 0.0 {
+                format!("{:.3}", rmse(r) / best)
+            } else {
+                String::new()
+            };
+            writeln!(
+                out,
+                "{},{},{},{:.3},{:.6},{rel},{:.4e}",
+                r.strategy.name(),
+                r.samplers,
+                spp(r),
+                seconds(r),
+                rmse(r),
+                spp(r) as f64 * pixels / seconds(r).max(1e-9)
+            )?;
+        }
+        Ok(())
+    };
+    table(
+        &mut out,
+        format!("equal samples ({} spp)", a.spp),
+        |r| r.rmse_at_spp,
+        |r| r.rendered.at_spp.samples_per_pixel(),
+        |r| r.rendered.seconds_at_spp,
+    )?;
+    if let Some(s) = a.seconds {
+        table(
+            &mut out,
+            format!("equal time ({s} s)"),
+            |r| r.rmse_last,
+            |r| r.rendered.last.samples_per_pixel(),
+            |r| r.rendered.seconds,
+        )?;
+    }
+    // Equal CPU time, modelled: the RMSE at --spp scaled to `budget`
+    // seconds of one thread (RMSE falls as 1/sqrt(samples)).
+    let budget = a.seconds.unwrap_or(1.0);
+    let spp_in_budget = |r: &Result1| budget / (r.seconds_per_sample * pixels).max(1e-300);
+    let modelled = |r: &Result1| {
+        r.rmse_at_spp * (r.rendered.at_spp.samples_per_pixel() as f64 / spp_in_budget(r)).sqrt()
+    };
+    writeln!(
+        out,
+        "equal CPU time ({budget} s of one thread, modelled: RMSE at {} spp x sqrt(spp x pixels x CPU s per camera sample / {budget}); fastest of {} timed passes)",
+        a.spp,
+        a.timing_repeats
+    )?;
+    writeln!(
+        out,
+        "strategy,samplers,spp,seconds,rmse,rmse_vs_best_single,camera_samples_per_s"
+    )?;
+    let best = results
+        .iter()
+        .filter(|r| !r.strategy.is_mis())
+        .map(modelled)
+        .fold(f64::INFINITY, f64::min);
+    for r in results {
+        let rmse = modelled(r);
+        let rel = if best.is_finite() && best > 0.0 {
+            format!("{:.3}", rmse / best)
+        } else {
+            String::new()
+        };
+        writeln!(
+            out,
+            "{},{},{:.1},{budget:.3},{rmse:.6},{rel},{:.4e}",
+            r.strategy.name(),
+            r.samplers,
+            spp_in_budget(r),
+            1.0 / r.seconds_per_sample.max(1e-300)
+        )?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// The strategies of a comma-separated list.
+fn parse_strategies(list: &str) -> Result<Vec<Strategy>> {
+    let all: Vec<&str> = Strategy::ALL.iter().map(|s| s.name()).collect();
+    let v: Vec<Strategy> = list
+        .split(',')
+        .map(str::trim)
+        .filter(|t| !t.is_empty())
+        .map(|t| {
+            Strategy::from_name(t).ok_or_else(|| Error::InvalidArgument {
+                what: "strategy",
+                value: t.to_string(),
+                reason: format!("the strategies are {}", all.join(", ")),
+            })
+        })
+        .collect::<Result<_>>()?;
+    if v.is_empty() {
+        return Err(Error::InvalidArgument {
+            what: "strategies",
+            value: list.to_string(),
+            reason: format!("name at least one of {}", all.join(", ")),
+        });
+    }
+    Ok(v)
+}
+
+/// The compensated form of an environment sampler's name, for MIS.
+fn compensated_name(name: &str) -> String {
+    if name == "uniform" {
+        "uniform-comp".into()
+    } else if name == "adaptive" || name.starts_with("adaptive:") {
+        name.replacen("adaptive", "adaptive-comp", 1)
+    } else {
+        name.to_string()
+    }
+}
+
+/// The procedural sky baked into a lat-long map in acdf's convention (the
+/// sky's own `+y` up becomes `+z`; its sun stands on the camera's side).
+fn sky_map() -> Result<EnvMap> {
+    let sky = Sky::default();
+    let grid = acdf::lights::LatLong::new(SKY_MAP_WIDTH, SKY_MAP_WIDTH / 2);
+    Ok(EnvMap::from_fn(
+        SKY_MAP_WIDTH,
+        SKY_MAP_WIDTH / 2,
+        |k, j| {
+            let d = grid.texel_direction(k, j);
+            sky.radiance(Vec3::new(d.x, d.z, -d.y))
+        },
+    )?)
+}
+
+/// The height, after checking sizes, times and exposure, and the memory a
+/// render takes.
+fn check_sizes(a: &Args) -> Result<usize> {
+    let height = a.height.unwrap_or(a.width);
+    if a.width == 0 || height == 0 || a.spp == 0 || a.ref_spp == 0 {
+        return Err(Error::InvalidArgument {
+            what: "render size",
+            value: format!(
+                "width {} height {height} spp {} ref-spp {}",
+                a.width, a.spp, a.ref_spp
+            ),
+            reason: "all must be at least 1".into(),
+        });
+    }
+    if let Some(s) = a.seconds {
+        if !(s > 0.0 && s <= MAX_SECONDS) {
+            return Err(Error::InvalidArgument {
+                what: "seconds",
+                value: format!("{s:?}"),
+                reason: format!("must be a positive number of seconds, at most {MAX_SECONDS:e}"),
+            });
+        }
+    }
+    if a.timing_repeats == 0 {
+        return Err(Error::InvalidArgument {
+            what: "timing-repeats",
+            value: "0".into(),
+            reason: "need at least 1 timed pass".into(),
+        });
+    }
+    if !(0.0..=1.0).contains(&a.mis_fraction) {
+        return Err(Error::InvalidArgument {
+            what: "mis-fraction",
+            value: a.mis_fraction.to_string(),
+            reason: "must be a probability, from 0 to 1".into(),
+        });
+    }
+    if !(a.exposure.is_finite() && a.exposure >= 0.0) {
+        return Err(Error::InvalidArgument {
+            what: "exposure",
+            value: a.exposure.to_string(),
+            reason: "must be a finite number, 0 or more".into(),
+        });
+    }
+    // The reference and, per strategy, two films (at --spp and the last),
+    // its PNG, its error map and their tiles in the composite (twice).
+    let n = a.strategies.split(',').count() + 1;
+    acdf_core::limits::check_memory(
+        &format!("a render of {}x{height} pixels", a.width),
+        render_memory_estimate(a.width, height, 2 * n, 6 * n),
+    )?;
+    Ok(height)
+}
+
+fn image_error(path: &Path, message: impl std::fmt::Display) -> Error {
+    Error::Image {
+        path: path.to_path_buf(),
+        message: message.to_string(),
+    }
+}
+
+/// Write a film's radiance as OpenEXR, atomically.
+fn write_exr(path: &Path, film: &Film) -> Result<()> {
+    let bytes = acdf_render::mitsuba::exr_bytes(&film.to_rgb32f(), path)?;
+    Ok(acdf_core::fsio::write_atomic(path, |w| {
+        w.write_all(&bytes)
+    })?)
+}
+
+/// Read a linear RGB image of `size` as a film.
+fn read_exr(path: &Path, size: (usize, usize)) -> Result<Film> {
+    let bytes = acdf_core::fsio::read_bounded(path, u64::MAX, "the memory limit")?;
+    let img = image::load_from_memory(&bytes)
+        .map_err(|e| image_error(path, e))?
+        .to_rgb32f();
+    let got = (img.width() as usize, img.height() as usize);
+    if got != size {
+        return Err(image_error(
+            path,
+            format!(
+                "the reference is {}x{} pixels, the render {}x{}",
+                got.0, got.1, size.0, size.1
+            ),
+        ));
+    }
+    let radiance: Vec<Vec3> = img.pixels().map(|p| Vec3::from(p.0)).collect();
+    if radiance
+        .iter()
+        .any(|v| !v.is_finite() || v.min_element() < 0.0)
+    {
+        return Err(image_error(
+            path,
+            "the reference has NaN, infinite or negative values",
+        ));
+    }
+    Ok(Film::from_radiance(size.0, size.1, &radiance))
+}
