@@ -296,7 +296,9 @@ fn rejects_a_pdf_off_by_five_percent() {
 fn shared_maps() -> Option<Vec<(String, Arc<EnvMap>)>> {
     let dir = acdf_materials::shared_data_dir().map(|d| d.join("envmaps"));
     let Some(dir) = dir.filter(|d| d.is_dir()) else {
-        println!("skipping: no ../shared/data/envmaps (set ACDF_SHARED_DATA)");
+        acdf_materials::testing::skip_without_data(
+            "no ../shared/data/envmaps (set ACDF_SHARED_DATA)",
+        );
         return None;
     };
     let mut maps = Vec::new();
@@ -308,7 +310,7 @@ fn shared_maps() -> Option<Vec<(String, Arc<EnvMap>)>> {
     ] {
         let path = dir.join(name);
         if !path.exists() {
-            println!("skipping {name}: absent");
+            acdf_materials::testing::skip_without_data(format_args!("{name}: absent"));
             continue;
         }
         maps.push((name.to_string(), Arc::new(EnvMap::open(&path).unwrap())));

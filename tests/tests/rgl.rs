@@ -30,8 +30,9 @@
 //! the true density of the draws, and 7.7e-5 of ilm_solo_m_68's draws land
 //! there. 0.5° moves the spike off the pole. Draws are cut to 150,000 per
 //! direction (the default is 10^6), extreme-direction draws to 5,000 and
-//! weight draws to 4,096, so that the seven materials take about 40 s
-//! (`cargo test --release -p acdf-conformance --test rgl`).
+//! weight draws to 4,096, so that the seven materials take a small
+//! fraction of the time the defaults would (`cargo test --release -p
+//! acdf-conformance --test rgl`).
 //!
 //! The bilinear warp (`Bilinear2D`) joins the distribution battery with the
 //! bilinear (vertex-valued) semantics of `integral()` and 200,000 draws per
@@ -53,12 +54,14 @@ fn config() -> SamplerConfig {
 
 fn run(stem: &str) {
     let Some(dir) = acdf_materials::rgl::shared_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        acdf_materials::testing::skip_without_data(
+            "shared RGL data not found (set ACDF_SHARED_DATA)",
+        );
         return;
     };
     let path = dir.join(format!("{stem}.bsdf"));
     if !path.is_file() {
-        println!("skipping: {} not found", path.display());
+        acdf_materials::testing::skip_without_data(format_args!("{} not found", path.display()));
         return;
     }
     let brdf = Arc::new(RglBrdf::open(&path).expect("the shared RGL file loads"));

@@ -70,7 +70,9 @@ fn nbrdf(name: &str) {
     let library = match acdf_materials::nbrdf::NbrdfLibrary::load_shared() {
         Ok(library) => library,
         Err(e) => {
-            println!("skipping: the Neural-BRDF data is not available ({e})");
+            acdf_materials::testing::skip_without_data(format_args!(
+                "the Neural-BRDF data is not available ({e})"
+            ));
             return;
         }
     };
@@ -98,7 +100,9 @@ fn nbrdf_blue_metallic_paint() {
 #[test]
 fn rgl_files() {
     let Some(dir) = acdf_materials::rgl::shared_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        acdf_materials::testing::skip_without_data(
+            "shared RGL data not found (set ACDF_SHARED_DATA)",
+        );
         return;
     };
     let mut files: Vec<_> = std::fs::read_dir(&dir)

@@ -58,9 +58,8 @@ pub(crate) const CURVE_GUIDE_CELLS: usize = 32;
 /// Only u gets a guide. The segment of a position x (a density lookup) is
 /// searched as before: x arrives late, at the end of a chain of
 /// arctangents, and the four-way step's loads do not wait for it while a
-/// guide's do (with a guide of the positions too, adaptive:dp `pdf` one
-/// call at a time measured about 5% slower on the built-in nickel, as
-/// `acdf bench` times it).
+/// guide's do, so a guide of the positions would add its read to the
+/// chain of every `pdf` call instead of taking a step off it.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub(crate) struct CurveGuide {
     cdfs: Guide,
@@ -324,9 +323,7 @@ pub(crate) fn segment_samples<const N: usize>(
     }
     // x >= x_i already (t >= 0 and x_{i+1} >= x_i), so only the top needs
     // a clamp, and its two bounds are combined before x is known: one select
-    // on the chain a single draw waits for instead of three (a 2D draw whose
-    // input waits for the one before measured about 8% faster on the
-    // built-in nickel's middle slice).
+    // on the chain a single draw waits for instead of three.
     for (x, s) in x.iter_mut().zip(seg) {
         let below_x1 = f32::from_bits(s.x1.to_bits().wrapping_sub(1));
         let top = if below_x1 > ONE_MINUS_EPSILON {

@@ -508,9 +508,9 @@ impl AdaptiveCdf2D {
     /// Start loading the conditional that a draw with this u.y most likely
     /// takes: that of the first marginal segment of u.y's guide interval
     /// (`acdf_core::search::prefetch`), so that its read is in flight while
-    /// the marginal is searched. The `adaptive:dp` sampler's `sample`, one
-    /// call at a time, measured 3 to 5% faster with it on the built-in
-    /// nickel (as `acdf bench` times it).
+    /// the marginal is searched: where the guess is right, the
+    /// conditional's first read no longer waits for memory after the
+    /// marginal search.
     #[inline(always)]
     fn prefetch_likely_conditional(&self, uy: f32) {
         let last = self.offsets.len().saturating_sub(2);

@@ -18,8 +18,8 @@
 //!   default `adaptive` sampler); `sample_batch` over all the numbers on one
 //!   thread, and split into chunks over every rayon thread.
 //! - **BRDF samplers** (`uniform`, `adaptive`) on the material at
-//!   the isotropic resolution, then the seed's configuration (`uniform` at
-//!   the paper's 32x16x256x32, 17 MB on nickel) and the recommended one
+//!   the isotropic resolution, then the 32x16x256x32 table of Lawrence et
+//!   al. (`uniform` at that resolution, 17 MB on nickel) and the recommended one
 //!   (`adaptive:chi2` at the isotropic resolution, a few hundred KB), and
 //!   for an isotropic material the adaptive-outgoing `outgoing:chi2` (at
 //!   most 17.6 KB), all slices built beforehand, on one thread:
@@ -217,8 +217,8 @@ fn load_average() -> Option<f64> {
 ///
 /// The addend is a register, not an immediate: cores that fold chains of
 /// immediate additions at register renaming (recent Intel cores do) would
-/// otherwise retire several per cycle, and the reading would exceed the
-/// clock (11 GHz on a Xeon whose cores turbo to 4).
+/// otherwise retire several per cycle, and the reading would be a multiple
+/// of the clock.
 #[cfg(target_arch = "x86_64")]
 pub fn clock_ghz() -> Option<f64> {
     const ADDITIONS: u64 = 100_000_000;
@@ -486,8 +486,9 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
         bench_sampler(&adaptive, adaptive.resolution().to_string(), &u, repeats),
     ];
     drop((uniform, adaptive));
-    // Then the seed's configuration against the one this project
-    // recommends: the same calls over tables some 70 times apart in size.
+    // Then the 32x16x256x32 table of Lawrence et al. against the
+    // configuration this project recommends: the same calls over tables
+    // some 70 times apart in size.
     let seed = UniformBrdfSampler::new(
         brdf.clone(),
         effective_resolution(&material, Resolution::PAPER),

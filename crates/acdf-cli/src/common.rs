@@ -216,7 +216,8 @@ pub struct TargetArgs {
     pub target_efficiency: Option<f64>,
     /// The reference of the relative efficiency and the compression,
     /// `NAME` or `NAME@RES` (default: uniform at the command's resolution;
-    /// with --target-efficiency, uniform@32x16x256x32, the seed's table).
+    /// with --target-efficiency, uniform@32x16x256x32, the table of
+    /// Lawrence et al.).
     #[arg(long, value_name = "SAMPLER")]
     pub reference: Option<String>,
 }

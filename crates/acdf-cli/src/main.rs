@@ -139,8 +139,8 @@ enum Command {
     /// directory.
     #[command(after_long_help = report::COLUMNS)]
     Sweep(sweep::Args),
-    /// Every sampler on all 100 MERL materials against the seed's
-    /// 32x16x256x32 table: CSV, JSON, a scatter plot (SVG, PNG) of
+    /// Every sampler on all 100 MERL materials against the 32x16x256x32
+    /// table of Lawrence et al.: CSV, JSON, a scatter plot (SVG, PNG) of
     /// compression against relative efficiency, and a summary table.
     #[command(after_long_help = survey::COLUMNS)]
     Survey(survey::Args),

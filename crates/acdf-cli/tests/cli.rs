@@ -33,7 +33,9 @@ fn assert_one_line_error(o: &Output, needle: &str) {
 fn shared_data() -> Option<PathBuf> {
     let d = acdf::materials::shared_data_dir();
     if d.is_none() {
-        println!("skipping: no shared data directory (set ACDF_SHARED_DATA)");
+        acdf::materials::testing::skip_without_data(
+            "no shared data directory (set ACDF_SHARED_DATA)",
+        );
     }
     d
 }
@@ -1109,12 +1111,12 @@ fn bench_prints_a_table_and_writes_documented_json() {
         "{cpu}"
     );
     let positive = |x: &serde_json::Value| x.as_f64().is_some_and(|x| x.is_finite() && x > 0.0);
-    // The clock readings are those of a real core (the loop with its chain
-    // of additions taken out read 11.8 GHz, removed altogether it would
-    // read millions), and the table turns the per-call rates into cycles.
-    // The lower bound is loose: on a loaded machine the timing loop shares
-    // its core, which lowers the reading (0.2996 GHz read at a load
-    // average of 11).
+    // The clock readings are those of a real core (a loop whose chain of
+    // additions the compiler or the core shortened would read several
+    // times the clock, one removed altogether far more), and the table
+    // turns the per-call rates into cycles. The lower bound is loose: on a
+    // loaded machine the timing loop shares its core, which can lower the
+    // reading to a fraction of the clock.
     for field in ["clock_ghz_start", "clock_ghz_end"] {
         if cfg!(target_arch = "x86_64") {
             let ghz = v[field].as_f64().unwrap_or(f64::NAN);
@@ -1166,8 +1168,8 @@ fn bench_prints_a_table_and_writes_documented_json() {
     );
     // Kept slices over the 128 fine θ_o slices, then the mean vertices.
     assert!(rows[4].1.contains("/128x1x"), "{}", rows[4].1);
-    // The seed's configuration stores over 30 times what the recommended
-    // one does.
+    // The 32x16x256x32 table stores over 30 times what the recommended
+    // configuration does.
     let bytes = |k: usize| samplers[k]["storage_bytes"].as_u64().unwrap();
     assert!(
         bytes(2) > 30 * bytes(3),

@@ -3,7 +3,7 @@
 //! runs the binary under a 4 GiB address-space limit and a timeout, so that
 //! a build that reads without bound fails instead of taking the machine.
 //!
-//! `ACDF_BIN=/path/to/acdf cargo test -p acdf --test hostile` runs the
+//! `ACDF_BIN=/path/to/acdf cargo test -p acdf-cli --test hostile` runs the
 //! same tests against another build of the command (an older one fails
 //! them).
 
@@ -592,7 +592,7 @@ fn f9_directions_are_read_in_f64_with_exact_field_counts() {
 #[test]
 fn f10_rgl_files_with_overlapping_fields_or_wild_angles_are_refused() {
     let Some(data) = acdf::materials::rgl::shared_dir() else {
-        println!("skipping: no shared RGL data (set ACDF_SHARED_DATA)");
+        acdf::materials::testing::skip_without_data("no shared RGL data (set ACDF_SHARED_DATA)");
         return;
     };
     let good = std::fs::read(data.join("paper_white_rgb.bsdf")).unwrap();

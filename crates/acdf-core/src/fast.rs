@@ -206,12 +206,11 @@ pub fn sin_cos_quarter_turns(s: f32) -> (f32, f32) {
 /// Why a table of 64ths rather than a reduction to the nearest quarter turn
 /// with polynomials of degree 9 and 8 in the rest: the table entry is read
 /// while d is being formed, and the short polynomials and the turn make a
-/// shorter chain, which every one-at-a-time `sample` waits for. Measured on
-/// the calls `acdf bench` times (built-in nickel, wo changing every call),
-/// the table form makes `sample` a few percent faster for both tabulated
-/// samplers, and the batch forms, which pick the entries in their lanes
-/// ([`sin_cos_turns_each`]), slightly slower than polynomials in SIMD
-/// would: `sample` one call at a time is the path that matters here.
+/// shorter chain, which every one-at-a-time `sample` waits for. The batch
+/// forms, which must pick the entries in their lanes
+/// ([`sin_cos_turns_each`]), lose a little against polynomials in SIMD,
+/// which need no table; `sample` one call at a time is the path that
+/// matters here.
 #[inline(always)]
 fn sin_cos_steps(steps: f32) -> (f32, f32) {
     let shifted = steps + ROUND_TO_INTEGER;
@@ -335,9 +334,12 @@ impl QuarterLanes {
 /// table's bit for bit.
 ///
 /// Why registers rather than memory: reading the entries from the table as
-/// eight 8-byte loads per eight angles, with the indices stored and
-/// reloaded, made the batch forms (`sample_each`, `sample_batch` of the
-/// tabulated samplers, as `acdf bench` times them) slower and less steady.
+/// eight 8-byte loads per eight angles puts a round trip of the indices
+/// through memory (stored from the vector, reloaded as addresses) and
+/// eight loads on the chain of every eight angles of the batch forms
+/// (`sample_each`, `sample_batch` of the tabulated samplers), where
+/// permutes and blends pick every entry from the first quarter turn's,
+/// held in four registers (`QuarterLanes`).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn turn_entries_lanes(

@@ -11,8 +11,8 @@
 //! at 32x1x256x32.
 //!
 //! ```sh
-//! cargo bench -p acdf --bench env
-//! ACDF_ENV_TOLERANCE=4e-3 cargo bench -p acdf --bench env -- oriented
+//! cargo bench -p acdf-experiments --bench env
+//! ACDF_ENV_TOLERANCE=4e-3 cargo bench -p acdf-experiments --bench env -- oriented
 //! ```
 //!
 //! `ACDF_ENV_TOLERANCE` sets the simplifier tolerance of the adaptive and
@@ -23,7 +23,7 @@
 //! spread over:
 //!
 //! ```sh
-//! ACDF_ENV_NORMALS=8 cargo bench -p acdf --bench env -- oriented
+//! ACDF_ENV_NORMALS=8 cargo bench -p acdf-experiments --bench env -- oriented
 //! ```
 
 use std::hint::black_box;

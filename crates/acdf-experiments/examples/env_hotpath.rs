@@ -13,7 +13,7 @@
 //! callgrind to count:
 //!
 //! ```sh
-//! cargo build --release -p acdf --example env_hotpath
+//! cargo build --release -p acdf-experiments --example env_hotpath
 //! valgrind --tool=callgrind --toggle-collect='*hot_env*' \
 //!   target/release/examples/env_hotpath ../shared/data/envmaps/rooitou_park_1k.hdr \
 //!   oriented:dp 200000 64

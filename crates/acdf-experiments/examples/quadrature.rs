@@ -2,8 +2,8 @@
 //! how it compares with Monte Carlo estimates of growing size.
 //!
 //! ```sh
-//! cargo run --release -p acdf --example quadrature
-//! cargo run --release -p acdf --example quadrature -- \
+//! cargo run --release -p acdf-experiments --example quadrature
+//! cargo run --release -p acdf-experiments --example quadrature -- \
 //!     --materials nbrdf:nickel --samplers uniform,cosine --draws 17,20,23
 //! ```
 //!

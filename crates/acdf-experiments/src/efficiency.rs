@@ -47,13 +47,11 @@
 //! repeat (a preemption that evicts the tables from the caches, a sibling
 //! thread sharing the core), so many short repeats and their minimum
 //! measure the sampler's own cost more repeatably than a median of long
-//! ones: on the report's three measured materials, under a load average of
-//! 9 to 10 on 2 cores, two runs of `acdf report` gave relative
-//! efficiencies 1.1% apart at the median row (5.6% at most) with the
-//! minimum of 45 repeats of 512 draws per direction, and 6.9% (17%) with
-//! the median of 9 repeats of 4096. Several samplers are timed in turns (one repeat of each
-//! per round, [`time_samplers`]), so that each sees the machine in the same
-//! states. The BRDF evaluation at the
+//! ones: among many short repeats some run undisturbed, while a long one
+//! rarely does (the spread between runs of `acdf report` under both rules
+//! is in `docs/performance.md`). Several samplers are timed in turns (one
+//! repeat of each per round, [`time_samplers`]), so that each sees the
+//! machine in the same states. The BRDF evaluation at the
 //! drawn directions, the same work whichever sampler drew them, is timed in
 //! the same rounds and reported beside it (t_eval), but is not part of t_s;
 //! nor is the environment lookup.
@@ -101,7 +99,7 @@ pub fn standard_frame() -> Frame {
 /// of `acdf report`, the relative variances of `uniform` and
 /// `adaptive:chi2` are within 0.25% of those on 2048 × 1024 cells (within
 /// 1.2% on 512 × 256, 4% on 1024 × 128: the φ_h columns matter most);
-/// `cargo run --release -p acdf --example quadrature` prints the
+/// `cargo run --release -p acdf-experiments --example quadrature` prints the
 /// comparison. The firefly measure, a maximum over the grid's points,
 /// grows slowly with the grid (by about 10% per doubling of both counts).
 pub const VARIANCE_GRID: HemisphereGrid = HemisphereGrid::HalfVector {

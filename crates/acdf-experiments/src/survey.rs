@@ -1,6 +1,6 @@
 //! The survey: every sampler on every MERL material of the Neural-BRDF
-//! file, against the seed presentation's table (uniform at
-//! 32x16x256x32).
+//! file, against the 32x16x256x32 table of Lawrence et al. (the uniform
+//! sampler at that resolution).
 //!
 //! For each material (`nbrdf:NAME`, baked into a MERL table) the survey
 //! builds the reference, the uniform sampler at the default resolution,

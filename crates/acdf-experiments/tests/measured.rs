@@ -11,7 +11,9 @@ const MATERIALS: [&str; 3] = ["nickel", "blue-metallic-paint", "gray-plastic"];
 fn have_data() -> bool {
     let found = acdf::material::nbrdf_weights_path(None).is_some_and(|p| p.is_file());
     if !found {
-        println!("skipping: no Neural-BRDF weights (set ACDF_SHARED_DATA)");
+        acdf::materials::testing::skip_without_data(
+            "no Neural-BRDF weights (set ACDF_SHARED_DATA)",
+        );
     }
     found
 }
@@ -23,7 +25,8 @@ fn have_data() -> bool {
 /// with 5% cosine sampling, whose weights are bounded, and cosine
 /// sampling; without the mix the tabulated samplers' weights reach
 /// hundreds of times their mean, and 2^16 draws per direction leave errors
-/// of 50% and more, see README). Every figure is finite.
+/// of 50% and more: `docs/results.md`, "Why the Monte Carlo estimate is not
+/// the measure"). Every figure is finite.
 #[test]
 fn quadrature_agrees_with_monte_carlo_where_its_error_is_small() {
     if !have_data() {

@@ -21,6 +21,7 @@ pub mod analytic;
 pub mod merl;
 pub mod nbrdf;
 pub mod rgl;
+pub mod testing;
 
 use std::path::PathBuf;
 use std::sync::Arc;

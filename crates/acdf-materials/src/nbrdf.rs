@@ -418,12 +418,15 @@ mod tests {
     /// calling test is skipped.
     fn library() -> Option<NbrdfLibrary> {
         let Some(dir) = crate::shared_data_dir() else {
-            println!("skipping: no shared data directory (set ACDF_SHARED_DATA)");
+            crate::testing::skip_without_data("no shared data directory (set ACDF_SHARED_DATA)");
             return None;
         };
         let dir = dir.join(DATA_DIR);
         if !dir.join(WEIGHTS_FILE).is_file() {
-            println!("skipping: {} is absent", dir.join(WEIGHTS_FILE).display());
+            crate::testing::skip_without_data(format_args!(
+                "{} is absent",
+                dir.join(WEIGHTS_FILE).display()
+            ));
             return None;
         }
         Some(NbrdfLibrary::load(&dir).expect("the shipped library loads"))
@@ -566,7 +569,8 @@ mod tests {
             }
         }
         assert!(checked > 20_000);
-        // nickel at θ_h = θ_d = 0 is (6.502, 5.331, 4.157) per the README.
+        // nickel at θ_h = θ_d = 0 is (6.502, 5.331, 4.157) per the shared
+        // data's `merl-neural-brdf/README.md`.
         let f0 = back.get(0, 0, 0);
         assert!(
             (f0 - Rgb::new(6.502, 5.331, 4.157)).abs().max_element() < 2e-3,

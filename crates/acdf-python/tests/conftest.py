@@ -23,6 +23,15 @@ def shared_data() -> Path | None:
     return next((p for p in candidates if p.is_dir()), None)
 
 
+def skip_without_data(reason: str) -> None:
+    """Skip a test whose shared data is absent, or, where `ACDF_REQUIRE_DATA`
+    is set to anything but empty or 0 (as CI sets it: CI always has the
+    data), fail it, so that a missing data folder cannot pass."""
+    if os.environ.get("ACDF_REQUIRE_DATA", "") not in ("", "0"):
+        pytest.fail(f"the shared data this test needs is absent and ACDF_REQUIRE_DATA is set: {reason}")
+    pytest.skip(f"skipping: {reason}")
+
+
 def data_file(folder: str, name: str) -> Path | None:
     """`name` in the shared data's `folder`, if it is there."""
     data = shared_data()
@@ -38,7 +47,7 @@ def rgl_file(name: str = "ilm_solo_m_68_rgb.bsdf") -> Path | None:
 def rgl_path() -> Path:
     path = rgl_file()
     if path is None:
-        pytest.skip("skipping: no RGL material (../shared/data/rgl-material-database absent)")
+        skip_without_data("no RGL material (../shared/data/rgl-material-database absent)")
     return path
 
 
@@ -50,7 +59,7 @@ def env_file(name: str = "studio_small_03_1k.hdr") -> Path | None:
 def env_path() -> Path:
     path = env_file()
     if path is None:
-        pytest.skip("skipping: no environment map (../shared/data/envmaps absent)")
+        skip_without_data("no environment map (../shared/data/envmaps absent)")
     return path
 
 
@@ -66,7 +75,7 @@ def acdf_bin() -> Path:
     for c in candidates:
         if c.is_file() and os.access(c, os.X_OK):
             return c
-    pytest.skip("skipping: no acdf command (cargo build --release -p acdf, or set ACDF_BIN)")
+    pytest.skip("skipping: no acdf command (cargo build --release -p acdf-cli, or set ACDF_BIN)")
 
 
 def run(acdf_bin: Path, *args: str, stdin: str | None = None) -> str:

@@ -350,12 +350,12 @@ def test_rgl_material_and_sampler(rgl_path) -> None:
 
 
 def test_nbrdf_material(tmp_path) -> None:
-    from conftest import shared_data
+    from conftest import shared_data, skip_without_data
 
     data = shared_data()
     weights = data / "merl-neural-brdf" / "merl_nbrdf_weights.f32" if data else None
     if weights is None or not weights.is_file():
-        pytest.skip("skipping: no Neural-BRDF weights (../shared/data/merl-neural-brdf absent)")
+        skip_without_data("no Neural-BRDF weights (../shared/data/merl-neural-brdf absent)")
     m = acdf.Material.load("nbrdf:nickel", nbrdf_weights=weights)
     assert m.name == "nickel"
     f = m.eval(acdf.direction(30, 45), acdf.direction(30, 225))

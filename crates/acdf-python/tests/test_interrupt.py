@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import rgl_file
+from conftest import rgl_file, skip_without_data
 
 # How long after the signal the call must have raised: a slice of a batch
 # or a poll of a long computation takes milliseconds; the rest is slack
@@ -61,7 +61,7 @@ sys.exit(3)
 def test_ctrl_c_interrupts_a_long_call(kind: str) -> None:
     rgl = rgl_file()
     if kind == "batch" and rgl is None:
-        pytest.skip("skipping: no RGL material (../shared/data/rgl-material-database absent)")
+        skip_without_data("no RGL material (../shared/data/rgl-material-database absent)")
     setup, call = CALLS[kind]
     child = subprocess.Popen(
         [sys.executable, "-c", CHILD.format(setup=setup, call=call), str(rgl)],

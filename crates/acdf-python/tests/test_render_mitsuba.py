@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import rgl_file, shared_data
+from conftest import rgl_file, shared_data, skip_without_data
 from render_check import compare
 
 mi = pytest.importorskip("mitsuba", reason="skipping: Mitsuba 3 is not installed")
@@ -54,7 +54,7 @@ def small_map(tmp_path_factory) -> Path:
     data = shared_data()
     src = data / "envmaps" / MAP if data else None
     if src is None or not src.is_file():
-        pytest.skip(f"skipping: no environment map ../shared/data/envmaps/{MAP}")
+        skip_without_data(f"no environment map ../shared/data/envmaps/{MAP}")
     mi.set_variant("scalar_rgb")
     full = np.array(
         mi.Bitmap(str(src)).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, False)
@@ -132,7 +132,7 @@ def cases() -> list[tuple[str, tuple[str, ...]]]:
 def test_acdf_render_agrees_with_mitsuba(acdf_bin: Path, small_map: Path, tmp_path: Path,
                                          material: str, extra: tuple[str, ...]) -> None:
     if material == "missing-rgl":
-        pytest.skip(f"skipping: no RGL material ../shared/data/rgl-material-database/{RGL}")
+        skip_without_data(f"no RGL material ../shared/data/rgl-material-database/{RGL}")
     mi.set_variant("scalar_rgb")
     scene = export(acdf_bin, material, small_map, tmp_path / "mitsuba", extra)
     mask = sphere_mask(scene)

@@ -406,9 +406,10 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     ///
     /// Why 1/512 for (wo·h) sin θ_h: a bound of 1/128 keeps the density
     /// within 2e-5, but on the specular built-in nickel 6.4% of the draws
-    /// fall below it and take the recomputation, against 0.5% below 1/512,
-    /// which makes `sample` one call at a time about 7% faster (as `acdf
-    /// bench` times it) while staying inside the battery's 1e-4.
+    /// fall below it and take the recomputation, against 0.5% below 1/512.
+    /// The recomputation (a normalisation, two arctangents and a lookup) is
+    /// the slow path of a draw, so the lower bound keeps nearly every draw
+    /// on the shortcut while staying inside the battery's 1e-4.
     #[inline(always)]
     fn finish_table_draw(
         &self,
@@ -536,18 +537,18 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// operations (no fused multiply-adds are formed), in three-operand
     /// instructions with blends for the selects. The common path of a
     /// table draw is inlined (`#[inline(always)]` down to the builder's
-    /// draw and box test) so that all of it is compiled so: an out-of-line
-    /// baseline draw costs about 15% more instructions per uniform `sample`
-    /// (callgrind on `tests/examples/instruction_count.rs`).
+    /// draw and box test) so that all of it is compiled so: out of line,
+    /// the draw would be baseline (SSE2) code, without three-operand
+    /// instructions or blends, behind a call on every `sample`
+    /// (`tests/examples/instruction_count.rs` counts the instructions).
     ///
     /// wo and u arrive as five `f32` in registers. Passed as `Vec3` and
     /// `Vec2` they went through the stack, and where the caller stored
     /// them in pieces (8 + 4 bytes) and this function loaded 8 bytes
     /// across both, the load waited for the stores to retire instead of
-    /// being forwarded, at the head of the call's chain: with `sample`
-    /// inlined into a loop that pattern cost the uniform sampler a third of
-    /// its `sample` rate and nearly half of its `pdf` rate (built-in
-    /// nickel, the calls `acdf bench` times).
+    /// being forwarded, at the head of the call's chain, so that every call
+    /// began with that wait before its first table read. Separate floats in
+    /// registers need no store or load at all.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn sample_avx2(
@@ -658,10 +659,9 @@ impl ThetaOCells {
     ///
     /// The slice, and so every table read of a draw, waits for this count.
     /// At 32 θ_o cells the bounds fill one window of
-    /// [`acdf_core::search::count_window`], compared all at once: `sample`
-    /// one call at a time measured a few percent faster than with the
-    /// two-level [`count_linear`] (the uniform sampler on the built-in
-    /// nickel, as `acdf bench` times it).
+    /// [`acdf_core::search::count_window`], compared all at once: one load,
+    /// one compare and a mask stand between wo and the slice, where the
+    /// two-level [`count_linear`] chains two loads and two compares.
     #[inline(always)]
     fn cell(&self, z: f32) -> usize {
         // -NaN compares false with everything: cell 0.
@@ -768,9 +768,8 @@ impl SliceGeometry {
     /// long before the draw's angles, so that it waits for one product of
     /// sines less than the dot product with the rotated h; the reflection
     /// then needs no normalisation of its own (see [`unit_reflection`]).
-    /// Both shorten the chain that every `sample` ends with (a few percent
-    /// one call at a time for both tabulated samplers on the built-in
-    /// nickel, as `acdf bench` times `sample`).
+    /// Both shorten the chain that every `sample` ends with, which is what
+    /// a call one at a time waits for.
     #[inline(always)]
     fn draw_from_angles(&self, wo: Vec3, s: Sample2D, angles: Angles) -> TableDraw {
         let ((sin_h, cos_h), (sin_p, cos_p)) = angles;
@@ -795,9 +794,10 @@ impl SliceGeometry {
     /// The half vector is the sum wi + wo scaled to unit length, but its
     /// angles, two arctangents, need no scale: they are taken from the sum
     /// itself, so they do not wait for the square root and division of the
-    /// normalisation, which only sin θ_h and wo·h use, beside them: `pdf`
-    /// one call at a time measured about 10% faster for both tabulated
-    /// samplers (as for `draw_from_angles`).
+    /// normalisation, which only sin θ_h and wo·h use, beside them. That
+    /// takes the square root and the division off the chain of every `pdf`
+    /// call, as [`draw_from_angles`](Self::draw_from_angles) does for
+    /// `sample`.
     #[inline(always)]
     fn coordinates_of(&self, wo: Vec3, wi: Vec3) -> TableCoordinates {
         let sum = wi + wo;
@@ -884,10 +884,10 @@ impl TableCoordinates {
 ///
 /// The full normalisation is computed only on its branch, which depends on
 /// wo alone: a select would make every call wait for its square root and
-/// division; one call at a time, `sample` measured 5 to 8% faster with the
-/// branch than with the select (built-in nickel, isotropic resolution, as
-/// `acdf bench` times `sample`). In the batch loops the compiler still
-/// turns the branch into a select, so they vectorise as before.
+/// division, whereas the branch, whose outcome is known as soon as wo is
+/// and is the same on nearly every call, is predicted and costs a draw
+/// nothing. In the batch loops the compiler still turns the branch into a
+/// select, so they vectorise as before.
 #[inline(always)]
 pub fn unit_reflection(wo: Vec3, h: Vec3, wo_h: f32) -> Vec3 {
     let w = reflect_given_dot(wo, h, wo_h);
@@ -910,8 +910,9 @@ type Angles = ((f32, f32), (f32, f32));
 /// Whether `v` is positive (not zero) and finite: its bit pattern, less
 /// one, is below that of the largest finite `f32` (zero wraps around,
 /// negative values, infinity and NaN are above). Written as the two
-/// compares `v > 0.0 && v < ∞`, the compiler turned it into a classification
-/// of the bits in a dozen integer instructions on every draw; this is three.
+/// compares `v > 0.0 && v < ∞`, the compiler turned it into a longer
+/// classification of the bits on every draw; this is one subtraction and
+/// one compare.
 #[inline(always)]
 fn is_positive_finite(v: f32) -> bool {
     v.to_bits().wrapping_sub(1) < f32::MAX.to_bits()

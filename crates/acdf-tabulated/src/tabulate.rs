@@ -41,9 +41,9 @@
 //! [`SUPPORT_SUBDIVISIONS`]), for outgoing directions across the outgoing
 //! cell, its edges included ([`served_outgoing`]), and takes the largest: the
 //! cell's mass for the outgoing direction that lights it most, so that the
-//! weight f cos θ_i / p stays bounded there (with the average over the
-//! outgoing directions instead, `acdf report` measured the variance of
-//! `adaptive:rw` on gray-plastic at 3.18e-4 (±52%) against 1.23e-4). Cells
+//! weight f cos θ_i / p stays bounded there (the average over the outgoing
+//! directions would dilute the mass of a cell that only some of them
+//! light, and the weight would grow by the same factor for those). Cells
 //! that are positive at the centre keep their value, so no mass is added
 //! where the centre tabulation had some.
 //!
@@ -179,11 +179,12 @@ impl HalfMap {
     ///
     /// Only the formula of v's side of the cap is computed: one draw at a
     /// time, the cap's division and square root would otherwise delay
-    /// every draw's angles (`sample` ran 2 to 4% faster with the branch,
-    /// measured as for `unit_reflection` in the sampler), and in the batch
-    /// loops the compiler makes the branch a select, so they still
-    /// vectorise. [`v_of`](Self::v_of) and [`jacobian`](Self::jacobian)
-    /// compute both formulas and select one.
+    /// every draw's angles, while the branch, taken on the few draws that
+    /// land in the polar cap, is nearly always predicted (the same choice
+    /// as for `unit_reflection` in the sampler); in the batch loops the
+    /// compiler makes the branch a select, so they still vectorise.
+    /// [`v_of`](Self::v_of) and [`jacobian`](Self::jacobian) compute both
+    /// formulas and select one.
     #[inline(always)]
     pub fn polar(&self, v: f32, outer: impl FnOnce() -> (f32, f32)) -> (f32, f32) {
         if v >= self.v1 {

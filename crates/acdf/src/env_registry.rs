@@ -193,10 +193,12 @@ fn adaptive_builder(
 /// budget of 0.5% on the chi-square divergence that simplification adds to
 /// the luminance table, the largest tried (0.05, 0.02, 0.01, 0.005) at
 /// which the irradiance variance stayed within 5% of the uniform table's
-/// on every shared map (README, environment maps; at 0.01 it rose by 8% on
-/// rooitou_park). `chi2`'s own default (1.5e-3, chosen on BRDF slices of
-/// 256 x 32 cells) keeps far more of a 1024 x 512 map than its variance
-/// needs and takes minutes to build.
+/// on every shared map (measured in `docs/environment.md`). `chi2`'s own
+/// default (1.5e-3, chosen on BRDF slices of 256 x 32 cells) keeps far
+/// more of a 1024 x 512 map than its variance needs, and builds far more
+/// slowly: the simplifier runs a shortest path over the 1024 columns of
+/// every marginal segment's conditional, and a smaller budget keeps more
+/// segments.
 pub const ENV_CHI2_TOLERANCE: f64 = 0.005;
 
 /// Every environment sampler family, in the order of help texts and of

@@ -275,8 +275,8 @@ pub struct SamplerAt {
 }
 
 impl SamplerAt {
-    /// `uniform@32x16x256x32`: the uniform table at the seed presentation's
-    /// resolution, the reference of `--target-efficiency` and of
+    /// `uniform@32x16x256x32`: the uniform table at the resolution of
+    /// Lawrence et al., the reference of `--target-efficiency` and of
     /// `acdf survey`.
     pub const PAPER_UNIFORM: SamplerAt = SamplerAt {
         sampler: SamplerSpec::UNIFORM,

@@ -13,26 +13,11 @@ use std::sync::Arc;
 /// Defensive mixing matters more here than for the uniform sampler. A slice
 /// is tabulated at the centre of its outgoing cell; for other `wo` in the
 /// cell the BRDF's tails move, and a merged low-density segment can sit far
-/// below them. Measured relative variance of Y(f) cos θ_i / pdf (48 fixed
-/// `wo`, quadrature; isotropic resolution 32x1x256x32, default tolerances;
-/// `cargo run -p acdf --release --example compression --
-/// --resolution 32x1x256x32 --materials nickel,near-mirror --cosine-mix A`):
-///
-/// | material | sampler | A = 0 | A = 0.05 |
-/// |---|---|---|---|
-/// | nickel | uniform | 1.68e-2 | 2.19e-2 |
-/// | nickel | `dp` | 4.56e-2 | 2.27e-2 |
-/// | nickel | `optimal` | 3.69e-2 | 2.32e-2 |
-/// | nickel | `chi2` | 7.72e-2 | 2.32e-2 |
-/// | near-mirror | uniform | 2.02e-2 | 7.36e-2 |
-/// | near-mirror | `dp` | 5.18e-2 | 8.51e-2 |
-/// | near-mirror | `chi2` | 3.82e-2 | 7.56e-2 |
-///
-/// So `with_cosine_mix(0.05)` makes the adaptive sampler 2 to 3.3 times
-/// better on nickel (whose diffuse tail it otherwise under-samples) and puts
-/// it within 5% of the equally mixed uniform sampler, while on the
-/// lobe-only near-mirror the mix costs a factor of 1.6 to 2 (5% of the draws
-/// go where f is 0).
+/// below them. A small cosine mix (`with_cosine_mix(0.05)`) bounds the
+/// weight in those tails: it helps a material with a diffuse tail, such as
+/// nickel, which the adaptive sampler otherwise under-samples, and costs a
+/// lobe-only material, such as the near-mirror, the share of draws that go
+/// where f is 0 (measured in `docs/results.md`).
 pub type AdaptiveBrdfSampler = TabulatedBrdfSampler<AdaptiveBuilder>;
 
 /// An adaptive sampler of `brdf` at `resolution` with the simplifier called

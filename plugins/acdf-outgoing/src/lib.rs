@@ -32,10 +32,9 @@
 //! is linear in cos θ_o rather than in u_o, the variable the breakpoints
 //! are spaced in, so that k and t follow from wo.z by compares with the
 //! breakpoints' cosines and one product (`ThetaOBlend`): no arctangent
-//! or square root stands between wo and the first table read of a call
-//! (`acdf bench --material nbrdf:nickel`, on the same kept slices: 316
-//! cycles per `sample` and 281 per `pdf`, against 410 and 317 with
-//! weights linear in u_o). The
+//! or square root stands between wo and the first table read of a call,
+//! where weights linear in u_o would need θ_o first (both are timed in
+//! `docs/performance.md`). The
 //! half-vector coordinates are those of the tabulated sampler
 //! ([`HalfMap`], φ_h measured from φ_o), so isotropic materials only.
 //! Wherever f cos θ_i > 0 for a wo between two breakpoints, one of the two
@@ -52,35 +51,15 @@
 //! both: two searches, and a slice costs two bytes per vertex instead of
 //! three (conditional) to six (marginal), so the storage cap holds more
 //! slices and vertices. The price is a grid that fits no slice as closely
-//! as its own vertices would. Measured on built-in nickel (instructions
-//! per call, callgrind on the `hotpath` example of the `acdf` crate) and
-//! at the storage cap (`acdf report`, the command of the README's section
-//! on this sampler; storage, relative variance, firefly), slices with
-//! their own vertices (stored as the anisotropic sampler stores them, at
-//! the defaults that suited that form: tolerance 6 times the simplifier's,
-//! budget 0.003) against the shared grid:
-//!
-//! | | own vertices | shared grid |
-//! |:--|--:|--:|
-//! | instructions: `sample`, `pdf` | 845, 734 | 703, 599 |
-//! | instructions: `sample_batch`, `pdf_batch` | 568, 492 | 406, 306 |
-//! | nbrdf:nickel | 17.0 KiB, 3.355e-2, 9 | 17.1 KiB, 3.489e-2, 52 |
-//! | nbrdf:blue-metallic-paint | 13.0 KiB, 4.071e-2, 23 | 14.7 KiB, 4.068e-2, 23 |
-//! | nbrdf:gray-plastic | 15.6 KiB, 4.708e-2, 9 | 15.7 KiB, 5.258e-2, 12 |
-//! | `acdf survey`: median rel. eff., worst, materials ≥ 0.95 | 2.46, 0.76, 97 | 2.98, 0.79, 96 |
+//! as its own vertices would. Slices with their own vertices against the
+//! shared grid, in instructions per call and in storage, variance and
+//! fireflies at the storage cap, are compared in `docs/results.md`.
 //!
 //! The grid's table is half the mean of the kept slices' normalised
 //! tables p_s and half Σ_s √p_s, each scaled to unit mass. Either alone
-//! fails some materials, as the same command shows (relative variance,
-//! firefly; on the three materials above, then with `--quadrature
-//! 512x256`, the survey's, on the mirror-like tungsten-carbide, chrome
-//! and ss440):
-//!
-//! | grid table | nickel | blue-metallic-paint | gray-plastic | tungsten-carbide, chrome, ss440 |
-//! |:--|:--|:--|:--|:--|
-//! | mean | 3.639e-2, 66 | 4.180e-2, 348 | 5.542e-2, 106 | 1.934e-2, 1.702e-2, 2.075e-2 |
-//! | Σ √p_s | 3.511e-2, 45 | 4.040e-2, 21 | 5.197e-2, 10 | 2.874e-2, 2.323e-2, 2.724e-2 |
-//! | half each | 3.489e-2, 52 | 4.068e-2, 23 | 5.258e-2, 12 | 1.924e-2, 1.765e-2, 2.075e-2 |
+//! fails some materials (measured in `docs/results.md`): the mean gives
+//! fireflies on the measured materials, the root a higher variance on
+//! mirror-like ones.
 //!
 //! On the mean, a slice whose lobe is narrower than the others' weighs
 //! little, and the simplifier merges the cells of its peak and tails,
@@ -124,15 +103,12 @@ use std::sync::Arc;
 /// default tolerance; at another tolerance it scales with it.
 ///
 /// With [`TOLERANCE_SCALE`] it was chosen by `acdf report` on
-/// `nbrdf:nickel`, `nbrdf:blue-metallic-paint` and `nbrdf:gray-plastic`
-/// (the command of the README's section on this sampler). At the storage
-/// cap, the budgets 0.002, 0.004 and 0.008 give (relative variance,
-/// firefly): nickel 3.492e-2, 71; 3.489e-2, 52; 3.481e-2, 42;
-/// blue-metallic-paint 3.935e-2, 20; 4.068e-2, 23; 4.355e-2, 13;
-/// gray-plastic 5.216e-2, 24; 5.258e-2, 12; 5.357e-2, 188. 0.002 and
-/// 0.004 are within 3% of each other; 0.004 keeps fewer slices (12 to 14
-/// against 14 to 17), so it builds faster and has the lower fireflies on
-/// two of the three.
+/// `nbrdf:nickel`, `nbrdf:blue-metallic-paint` and `nbrdf:gray-plastic` at
+/// the storage cap, among 0.002, 0.004 and 0.008: 0.004 gives nearly the
+/// variance of 0.002 with fewer kept slices, so it builds faster, and the
+/// lower fireflies on two of the three materials; 0.008 raises the
+/// variance on blue-metallic-paint and the fireflies on gray-plastic
+/// (measured in `docs/results.md`).
 pub const DEFAULT_BUDGET: f64 = 0.004;
 
 /// The default tolerance of an outgoing sampler over its simplifier's
@@ -271,7 +247,8 @@ fn stored_bytes(breakpoints: usize, slices: &SharedSlices) -> usize {
 }
 
 /// The storage the default tolerance keeps within: 1000 times less than
-/// the seed's uniform table at 32x16x256x32 (17,627,136 bytes).
+/// the 32x16x256x32 table of Lawrence et al. (the uniform sampler at that
+/// resolution, 17,627,136 bytes).
 pub const DEFAULT_MAX_BYTES: usize = 17_627;
 
 /// The factor by which a capped build raises its tolerance and budget.
@@ -286,8 +263,9 @@ pub(crate) const CAP_TRIES: usize = 8;
 /// root.
 ///
 /// √1.5: two steps make one [`CAP_STEP`]. With the square-root try, the
-/// three materials of the README's section on this sampler land 0.5 to 15%
-/// under the cap (17.1, 14.7 and 15.7 KiB, `acdf report`).
+/// three measured materials of the outgoing sampler's report land 0.5 to
+/// 15% under the cap (17.1, 14.7 and 15.7 KiB; `docs/results.md`, section
+/// "Adaptive outgoing angles").
 pub const FILL_STEP: f64 = 1.224_744_871;
 
 /// Lowerings of the tolerance a capped build tries at most (down to
@@ -850,9 +828,9 @@ struct Coordinates {
 /// a time) it returns as soon as the coordinates are known to be
 /// undefined: the same operations in the same order for defined ones.
 /// Without the returns the compiler pairs the two arctangents in vector
-/// registers, and one call at a time takes about 10 instructions more per
-/// `pdf` and per `sample` (callgrind, the `hotpath` example on the
-/// built-in nickel).
+/// registers, and one call at a time then pays for packing and unpacking
+/// them on every `pdf` and `sample` (the `hotpath` example counts the
+/// instructions).
 #[inline(always)]
 fn coordinates<const ONE: bool>(map: HalfMap, rotation: Vec2, wo: Vec3, wi: Vec3) -> Coordinates {
     let sum = wi + wo;
@@ -917,8 +895,9 @@ enum Route {
 
 /// Whether `v` is positive (not zero) and finite: its bit pattern, less
 /// one, is below that of the largest finite `f32` (zero wraps around;
-/// negative values, infinity and NaN are above). Three integer
-/// instructions where `v > 0.0 && v.is_finite()` compiles to a dozen.
+/// negative values, infinity and NaN are above): one subtraction and one
+/// compare, where `v > 0.0 && v.is_finite()` compiles to a longer
+/// classification of the bits.
 #[inline(always)]
 fn is_positive_finite(v: f32) -> bool {
     v.to_bits().wrapping_sub(1) < f32::MAX.to_bits()

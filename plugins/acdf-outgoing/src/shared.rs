@@ -15,7 +15,7 @@
 //! square roots Σ_s √p_s, each scaled to unit mass. The mean puts vertices
 //! where the mass is, which a narrow specular peak needs; the root evens
 //! out each slice's dynamic range, so that the grid also follows every
-//! slice's tails (measured in the module documentation of `outgoing`).
+//! slice's tails (measured in `docs/results.md`).
 //! Wherever any slice holds mass, so does the grid table, so every cell
 //! with mass lies in a segment of the grid with a conditional, and each
 //! slice's quantised masses keep every positive segment positive

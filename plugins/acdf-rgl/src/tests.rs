@@ -126,7 +126,9 @@ fn anisotropic_sample_and_pdf_agree() {
 #[test]
 fn real_sample_and_pdf_agree() {
     let Some(dir0) = rgl_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        acdf_materials::testing::skip_without_data(
+            "shared RGL data not found (set ACDF_SHARED_DATA)",
+        );
         return;
     };
     let _ = dir0;
@@ -276,7 +278,9 @@ fn samples_follow_the_pdf() {
 #[test]
 fn reference_pdf_matches_mitsuba() {
     let Some(dir) = rgl_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        acdf_materials::testing::skip_without_data(
+            "shared RGL data not found (set ACDF_SHARED_DATA)",
+        );
         return;
     };
     let text = std::fs::read_to_string(dir.join("reference_eval_mitsuba3.csv")).unwrap();
@@ -358,7 +362,9 @@ struct AlbedoRow {
 #[test]
 fn reference_albedo_matches_mitsuba() {
     let Some(dir) = rgl_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        acdf_materials::testing::skip_without_data(
+            "shared RGL data not found (set ACDF_SHARED_DATA)",
+        );
         return;
     };
     let text = std::fs::read_to_string(dir.join("reference_albedo_mitsuba3.csv")).unwrap();
@@ -466,7 +472,9 @@ fn dir_f64(theta_deg: f64) -> Vec3 {
 #[test]
 fn sampler_weights_are_finite_for_the_clipped_brdf() {
     let Some(brdf) = open("chm_mint_rgb") else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        acdf_materials::testing::skip_without_data(
+            "shared RGL data not found (set ACDF_SHARED_DATA)",
+        );
         return;
     };
     let s = RglSampler::new(brdf.clone());

@@ -69,14 +69,13 @@ struct Guide {
 /// constant scale, instead of after G is read from the distribution. One
 /// draw at a time that matters: a tabulated sampler locates the slice from
 /// wo just before it draws, and a scale read from the slice put the cell's
-/// multiply, clamps and conversion after that lookup on every draw's chain.
-/// The uniform sampler's `sample` measured 6 to 14% faster with the
-/// constant (built-in nickel, 256 rows, so the same guide as G = n, as
-/// `acdf bench` times `sample`; a row count passed in by the sampler and
-/// checked against the slice's gained half as much). 256 is the default θ_h
-/// resolution; marginals with many more rows get wider guide intervals,
-/// and those wider than [`SHORT_WINDOW`] are searched, which costs a draw
-/// about as much as G = n does (nickel slices of 90 and 1024 rows).
+/// multiply, clamps and conversion after that lookup on every draw's chain;
+/// with the constant they run beside the lookup. (A row count passed in by
+/// the sampler and checked against the slice's gains less than the
+/// constant.) 256 is the default θ_h resolution, so at the default the
+/// guide is the same as with G = n; marginals with many more rows get
+/// wider guide intervals, and those wider than [`SHORT_WINDOW`] are
+/// searched, which costs a draw about as much as G = n does.
 pub(crate) const MARGINAL_GUIDE_CELLS: usize = 256;
 
 impl Guide {
@@ -607,9 +606,7 @@ impl PiecewiseConstant2D {
     /// A row of up to [`search::WINDOW`] (32) entries is compared all at
     /// once ([`search::count_window`]): its loads and compares are
     /// independent, so a draw waits for one load, one compare and the
-    /// mask, where [`count_linear`] chains two loads and two compares: the
-    /// uniform sampler's `sample`, one call at a time, measured 2 to 3%
-    /// faster on the built-in nickel (as `acdf bench` times it).
+    /// mask, where [`count_linear`] chains two loads and two compares.
     #[inline(always)]
     fn column(&self, j: usize, u: f32) -> usize {
         let nx = self.nx;
@@ -645,10 +642,9 @@ impl PiecewiseConstant2D {
 
     /// Start loading the conditional row that a draw with this v = u.y
     /// most likely takes: the first row of v's guide interval, which holds
-    /// one or two rows on most tables ([`search::prefetch`]). The
-    /// uniform sampler's `sample`, one call at a time, measured 2 to 5%
-    /// faster with it on the built-in nickel (as `acdf bench` times it);
-    /// prefetching the interval's last row as well gains nothing more.
+    /// one or two rows on most tables ([`search::prefetch`]), so that the
+    /// row's read is in flight while the marginal is searched; prefetching
+    /// the interval's last row as well gains nothing more.
     #[inline(always)]
     fn prefetch_likely_row(&self, v: f32) {
         let g = search::Guide::cell(v, MARGINAL_GUIDE_CELLS);
@@ -1033,9 +1029,10 @@ fn inside_cell(x: f32, n: usize, m: f32) -> bool {
     f >= m && f <= 1.0 - m
 }
 
-/// The number of draws the scalar `sample_batch` advances together: sixteen
-/// measured about 5% faster than eight on the 256x32 nickel slice, and 32
-/// no faster (`sample_batch` throughput, one thread).
+/// The number of draws the scalar `sample_batch` advances together: enough
+/// independent draws for their loads to overlap, few enough for their
+/// state to stay in registers. Sixteen beat eight on the `sample_batch`
+/// throughput of the 256x32 slice, and 32 gained nothing more.
 const LANES: usize = 16;
 
 #[cfg(target_arch = "x86_64")]

@@ -41,11 +41,9 @@ use std::marker::PhantomData;
 
 /// Groups of eight lanes advanced together: thirty-two draws per stage.
 /// More groups hide more latency but hold more registers; past four, a
-/// stage's state spills. Four was the best common choice for the uniform
-/// and the adaptive batches when it was measured (throughput of
-/// `sample_batch` on the 256x32 nickel slice, one thread, two to eight
-/// groups): six was faster on some processors for the uniform
-/// distribution only, eight slower on others by up to a third.
+/// stage's state spills. Four is therefore the most groups that stay in
+/// registers, one count shared by the uniform and the adaptive batches
+/// (how it was chosen: `docs/performance.md`).
 pub const GROUPS: usize = 4;
 
 /// Draws per stage, [`GROUPS`] × 8.
@@ -98,7 +96,8 @@ impl Bracket {
     /// and the step is the whole search's first.
     ///
     /// Sixteen block ends rather than eight: one more compare per group
-    /// saves a gather, and measured faster on the 256x32 slice.
+    /// saves a gather, a load per lane whose latency every lane of the
+    /// group waits for.
     #[inline(always)]
     pub fn shared_top(&mut self, _: Avx2, run: &[f32], u: &[__m256; GROUPS]) -> usize {
         let n = run.len();
@@ -419,10 +418,10 @@ impl Source for PerLane<'_> {
 /// first and the eight second entries, in lane order.
 ///
 /// Eight 8-byte loads and four shuffles, where two gathers per eight pairs
-/// would do: the loads measured faster for pairs (adaptive 2D
-/// `sample_batch`, three pair reads per draw, against two 32-bit or two
-/// 64-bit gathers per eight pairs), and no faster for single entries,
-/// which keep the gather instruction.
+/// would do: for the pairs of the adaptive 2D `sample_batch` (three pair
+/// reads per draw) the independent loads beat both two 32-bit and two
+/// 64-bit gathers per eight pairs; for single entries they gain nothing,
+/// so single entries keep the gather instruction.
 ///
 /// # Safety
 /// AVX2; each `entry(l)` and the entry after it are readable.

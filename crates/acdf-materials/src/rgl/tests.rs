@@ -678,7 +678,7 @@ pub(crate) fn read_eval_csv(dir: &Path) -> Vec<EvalRow> {
 #[test]
 fn all_seven_files_load() {
     let Some(dir) = rgl_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        crate::testing::skip_without_data("shared RGL data not found (set ACDF_SHARED_DATA)");
         return;
     };
     for name in FILES {
@@ -695,12 +695,12 @@ fn all_seven_files_load() {
 
 /// f_r cos θ against Mitsuba 3 (Mitsuba's si.wi is our wo): relative 1e-3
 /// plus an absolute 1e-5, for every file. The near-specular chm_mint, whose
-/// sharp peak the README warns about, is within 1.3e-4 on these ten pairs,
-/// so it needs no looser bound.
+/// sharp peak the shared data's `rgl-material-database/README.md` warns
+/// about, is within 1.3e-4 on these ten pairs, so it needs no looser bound.
 #[test]
 fn reference_eval_matches_mitsuba() {
     let Some(dir) = rgl_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        crate::testing::skip_without_data("shared RGL data not found (set ACDF_SHARED_DATA)");
         return;
     };
     let rows = read_eval_csv(&dir);
@@ -742,7 +742,7 @@ fn reference_eval_matches_mitsuba() {
 #[test]
 fn negative_channels_are_clipped() {
     let Some(dir) = rgl_dir() else {
-        println!("skipping: shared RGL data not found (set ACDF_SHARED_DATA)");
+        crate::testing::skip_without_data("shared RGL data not found (set ACDF_SHARED_DATA)");
         return;
     };
     let b = RglBrdf::open(dir.join("chm_mint_rgb.bsdf")).unwrap();
