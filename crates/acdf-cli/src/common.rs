@@ -294,14 +294,14 @@ pub fn stdout() -> BufWriter<std::io::StdoutLock<'static>> {
     BufWriter::new(std::io::stdout().lock())
 }
 
-/// Write `bytes` to `path` atomically (`acdf_core::fsio::write_atomic`),
+/// Write `bytes` to `path` atomically (`acdf_io::fsio::write_atomic`),
 /// creating its directory: the one place where the report, sweep, survey
 /// and bench outputs reach the file system.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    Ok(acdf_core::fsio::write_atomic(path, |w| w.write_all(bytes))?)
+    Ok(acdf_io::fsio::write_atomic(path, |w| w.write_all(bytes))?)
 }
 
 /// Write `value` as pretty JSON to `path` ([`write_file`]).

@@ -82,7 +82,7 @@ struct Cli {
     /// The most memory one table, image or file read may take, checked
     /// before it is allocated: bytes, or a number with K, M, G or T
     /// (powers of 1024), or `unlimited`.
-    #[arg(long, global = true, value_name = "SIZE", default_value = "4G", value_parser = acdf_core::limits::parse_size)]
+    #[arg(long, global = true, value_name = "SIZE", default_value = "4G", value_parser = acdf_io::limits::parse_size)]
     memory_limit: u64,
     #[command(subcommand)]
     command: Command,
@@ -107,7 +107,7 @@ fn eprint_lossy(args: std::fmt::Arguments<'_>) {
 /// pipe, with one line and status 1 otherwise.
 fn exit_on_output_error(e: &std::io::Error) -> ! {
     if e.kind() == std::io::ErrorKind::BrokenPipe {
-        acdf_core::fsio::die_of_broken_pipe();
+        acdf_io::fsio::die_of_broken_pipe();
     }
     eprint_lossy(format_args!(
         "acdf: error: cannot write to standard output: {e}\n"
@@ -183,9 +183,9 @@ fn main() -> ExitCode {
         );
     }));
     let cli = Cli::parse();
-    acdf_core::limits::set_memory_limit(cli.memory_limit);
+    acdf_io::limits::set_memory_limit(cli.memory_limit);
     // Ctrl-C or a kill during a write removes the temporary file.
-    if let Err(e) = acdf_core::fsio::install_interrupt_cleanup() {
+    if let Err(e) = acdf_io::fsio::install_interrupt_cleanup() {
         eprintln!("acdf: warning: no interrupt handler ({e}); an interrupted write may leave a temporary file");
     }
     match run(cli) {

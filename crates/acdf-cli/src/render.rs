@@ -285,7 +285,7 @@ fn run_scene(
                     a.ref_spp, r.seconds
                 );
                 write_exr(&exr, &r.last)?;
-                acdf_core::fsio::write_atomic(&key_path, |w| w.write_all(key.as_bytes()))?;
+                acdf_io::fsio::write_atomic(&key_path, |w| w.write_all(key.as_bytes()))?;
                 r.last
             }
         }
@@ -439,8 +439,8 @@ fn convergence_plot(
     let png = a.out.join(format!("{label}-convergence.png"));
     let svg = a.out.join(format!("{label}-convergence.svg"));
     let (svg_text, png_bytes) = acdf_experiments::plot::figure_bytes(&figure, &png)?;
-    acdf_core::fsio::write_atomic(&png, |w| w.write_all(&png_bytes))?;
-    acdf_core::fsio::write_atomic(&svg, |w| w.write_all(svg_text.as_bytes()))?;
+    acdf_io::fsio::write_atomic(&png, |w| w.write_all(&png_bytes))?;
+    acdf_io::fsio::write_atomic(&svg, |w| w.write_all(svg_text.as_bytes()))?;
     Ok(vec![png, svg])
 }
 
@@ -667,7 +667,7 @@ fn check_sizes(a: &Args) -> Result<usize> {
     // The reference and, per strategy, two films (at --spp and the last),
     // its PNG, its error map and their tiles in the composite (twice).
     let n = a.strategies.split(',').count() + 1;
-    acdf_core::limits::check_memory(
+    acdf_io::limits::check_memory(
         &format!("a render of {}x{height} pixels", a.width),
         render_memory_estimate(a.width, height, 2 * n, 6 * n),
     )?;
@@ -684,14 +684,12 @@ fn image_error(path: &Path, message: impl std::fmt::Display) -> Error {
 /// Write a film's radiance as OpenEXR, atomically.
 fn write_exr(path: &Path, film: &Film) -> Result<()> {
     let bytes = acdf_render::mitsuba::exr_bytes(&film.to_rgb32f(), path)?;
-    Ok(acdf_core::fsio::write_atomic(path, |w| {
-        w.write_all(&bytes)
-    })?)
+    Ok(acdf_io::fsio::write_atomic(path, |w| w.write_all(&bytes))?)
 }
 
 /// Read a linear RGB image of `size` as a film.
 fn read_exr(path: &Path, size: (usize, usize)) -> Result<Film> {
-    let bytes = acdf_core::fsio::read_bounded(path, u64::MAX, "the memory limit")?;
+    let bytes = acdf_io::fsio::read_bounded(path, u64::MAX, "the memory limit")?;
     let img = image::load_from_memory(&bytes)
         .map_err(|e| image_error(path, e))?
         .to_rgb32f();

@@ -216,7 +216,7 @@ fn f1_bake_is_atomic_under_a_full_disk_and_concurrent_writers() {
 
 /// Finding 2: `build --out` replaced FIFOs and symbolic links with regular
 /// files and turned a 0600 file into 0644. (A device such as /dev/null is
-/// refused by the same check, tested in `acdf_core::fsio` without touching
+/// refused by the same check, tested in `acdf_io::fsio` without touching
 /// the real one; the interrupted build is the kill test's.)
 #[test]
 fn f2_build_refuses_special_targets_and_keeps_modes() {

@@ -42,11 +42,11 @@ pub enum Error {
     InvalidParameter { name: &'static str, reason: String },
 
     /// An allocation whose estimated size exceeds the memory limit
-    /// ([`crate::limits`]).
+    /// (checked by `acdf_io::limits::check_memory`).
     #[error(
         "{what} would take about {} ({bytes} bytes), more than the memory limit of {} (acdf --memory-limit raises it)",
-        crate::limits::format_bytes(*bytes),
-        crate::limits::format_bytes(*limit)
+        format_bytes(*bytes),
+        format_bytes(*limit)
     )]
     MemoryLimit {
         what: String,
@@ -62,3 +62,18 @@ pub enum Error {
 
 /// `Result` with the crate's [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// A byte count for people: `512 B`, `17.5 MiB`, `2.0 TiB`.
+pub fn format_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 6] = ["KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    if bytes < 1024 {
+        return format!("{bytes} B");
+    }
+    let mut value = bytes as f64 / 1024.0;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    format!("{value:.1} {}", UNITS[unit])
+}

@@ -11,10 +11,9 @@
 //! helpers every sampler uses (polynomial
 //! trigonometry in `fast`, branch-free sorted-list searches in `search`, and
 //! their SIMD-lane form for batches in `search::lanes`), with the one place
-//! that detects the CPU features they choose their code by (`cpu`);
-//! the one routine every written file goes through and the bounded reading
-//! of input files (`fsio`), with the memory limit that every allocation
-//! sized by input is checked against (`limits`); and the one error type. It holds no sampler and no data format, so that
+//! that detects the CPU features they choose their code by (`cpu`); and the
+//! one error type. It holds no sampler, no data format and no file I/O
+//! (that is `acdf-io`), so that
 //! plug-ins and material readers depend on this small crate (the tabulated
 //! plug-ins also on `acdf-tabulated`, the environment samplers on
 //! `acdf-lights`) and never on each other.
@@ -38,10 +37,8 @@ pub mod cpu;
 pub mod distribution;
 pub mod error;
 pub mod fast;
-pub mod fsio;
 pub mod geometry;
 pub mod light;
-pub mod limits;
 pub mod quadrature;
 pub mod sampler;
 pub mod search;

@@ -307,10 +307,10 @@ pub fn figure_bytes(figure: &Figure, name: &Path) -> Result<(String, Vec<u8>)> {
 }
 
 /// Write an 8-bit RGB image as a PNG file, atomically
-/// ([`acdf_core::fsio::write_atomic`]).
+/// ([`acdf_io::fsio::write_atomic`]).
 pub fn write_png(path: &Path, image: &image::RgbImage) -> Result<()> {
     use image::ImageEncoder;
-    Ok(acdf_core::fsio::write_atomic(path, |w| {
+    Ok(acdf_io::fsio::write_atomic(path, |w| {
         image::codecs::png::PngEncoder::new(w)
             .write_image(
                 image.as_raw(),

@@ -256,7 +256,7 @@ const DECODE_BYTES_PER_TEXEL: u64 = 44;
 /// (a 32-bit RGBA OpenEXR image takes 16, a Radiance file 4 or a little
 /// more) and 1 MiB of header and offset tables.
 fn max_file_bytes(texels: u64) -> u64 {
-    acdf_core::limits::bytes_of(texels, 32).saturating_add(1 << 20)
+    acdf_io::limits::bytes_of(texels, 32).saturating_add(1 << 20)
 }
 
 /// The image format of a file: from its first bytes, else from the
@@ -285,7 +285,7 @@ fn decode_error(path: &Path) -> impl Fn(image::ImageError) -> EnvError + '_ {
 /// The format and size of the image whose first bytes are `head`, read
 /// from its header alone, checked before anything is decoded: a
 /// lat-long size ([`check_size`]) whose decoding fits in the memory limit
-/// (`acdf_core::limits`).
+/// (`acdf_io::limits`).
 fn read_header(head: &[u8], path: &Path) -> Result<(image::ImageFormat, usize, usize)> {
     let format = image_format(head, path)?;
     let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(head), format)
@@ -293,9 +293,9 @@ fn read_header(head: &[u8], path: &Path) -> Result<(image::ImageFormat, usize, u
         .map_err(decode_error(path))?;
     let (w, h) = (w as usize, h as usize);
     check_size(w, h, w * h)?;
-    acdf_core::limits::check_memory(
+    acdf_io::limits::check_memory(
         &format!("decoding the {w}x{h} environment map"),
-        acdf_core::limits::bytes_of((w * h) as u64, DECODE_BYTES_PER_TEXEL),
+        acdf_io::limits::bytes_of((w * h) as u64, DECODE_BYTES_PER_TEXEL),
     )?;
     Ok((format, w, h))
 }
@@ -309,7 +309,7 @@ fn decode_rgb(
 ) -> Result<(usize, usize, Vec<Rgb>)> {
     let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
     let mut limits = image::Limits::default();
-    limits.max_alloc = Some(acdf_core::limits::memory_limit());
+    limits.max_alloc = Some(acdf_io::limits::memory_limit());
     reader.limits(limits);
     let img = reader.decode().map_err(decode_error(path))?;
     let rgb = img.to_rgb32f();
@@ -323,16 +323,16 @@ fn decode_rgb(
 }
 
 /// Read an image file to linear RGB texels through
-/// `acdf_core::fsio::Input`: the header first (at most 64 KiB, so that a
+/// `acdf_io::fsio::Input`: the header first (at most 64 KiB, so that a
 /// device such as /dev/zero is refused from its first bytes), its size
 /// checked ([`read_header`]), then the rest of the file, bounded by what
 /// an image of that size can hold.
 fn read_rgb(path: &Path) -> Result<(usize, usize, Vec<Rgb>)> {
-    let mut input = acdf_core::fsio::Input::open(path)?;
+    let mut input = acdf_io::fsio::Input::open(path)?;
     let mut bytes = input.read_up_to(HEADER_BYTES)?;
     let (format, w, h) = read_header(&bytes, path)?;
     let max = max_file_bytes((w * h) as u64)
-        .min(acdf_core::limits::memory_limit())
+        .min(acdf_io::limits::memory_limit())
         .saturating_sub(bytes.len() as u64);
     let rest = input.read_rest(max, &format!("what a {w}x{h} image file holds"))?;
     bytes.extend_from_slice(&rest);

@@ -8,9 +8,9 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum EnvError {
     /// The file could not be opened or read, or is larger than an image of
-    /// the size its header declares can be (`acdf_core::fsio::Input`).
+    /// the size its header declares can be (`acdf_io::fsio::Input`).
     #[error("{0}")]
-    File(#[from] acdf_core::fsio::FsError),
+    File(#[from] acdf_io::fsio::FsError),
 
     /// The file is not an image the decoder reads (unknown format, or a
     /// truncated or corrupt `.hdr`/`.exr`).

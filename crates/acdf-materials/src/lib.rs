@@ -41,9 +41,9 @@ pub enum MaterialError {
     },
 
     /// Writing a file failed or was refused, or reading it hit a bound
-    /// ([`acdf_core::fsio`]).
+    /// ([`acdf_io::fsio`]).
     #[error("{0}")]
-    File(#[from] acdf_core::fsio::FsError),
+    File(#[from] acdf_io::fsio::FsError),
 
     /// A size or an allocation beyond the memory limit, or a parameter
     /// check of `acdf-core`.

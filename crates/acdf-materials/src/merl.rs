@@ -244,13 +244,13 @@ impl MerlTable {
     /// second, and `/dev/zero` is refused after 12 bytes.
     pub fn read(path: impl AsRef<Path>) -> Result<MerlTable, MaterialError> {
         let path = path.as_ref();
-        let mut input = acdf_core::fsio::Input::open(path)?;
+        let mut input = acdf_io::fsio::Input::open(path)?;
         let mut bytes = input.read_up_to(12)?;
         let expected = check_header(&bytes, path)?;
         if let Some(len) = input.len() {
             check_length(expected, len, path)?;
         }
-        acdf_core::limits::check_memory(
+        acdf_io::limits::check_memory(
             &format!("reading MERL table {}", path.display()),
             READ_BYTES,
         )?;
@@ -425,10 +425,10 @@ impl MerlTable {
     }
 
     /// Write the table as a MERL `.binary` file (see [`MerlTable::write_to`]),
-    /// atomically ([`acdf_core::fsio::write_atomic`]): an interrupted or
+    /// atomically ([`acdf_io::fsio::write_atomic`]): an interrupted or
     /// failed write leaves the previous file.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), MaterialError> {
-        Ok(acdf_core::fsio::write_atomic(path.as_ref(), |w| {
+        Ok(acdf_io::fsio::write_atomic(path.as_ref(), |w| {
             self.write_to(w)
         })?)
     }

@@ -69,7 +69,7 @@ impl NbrdfLibrary {
         weights_path: &Path,
         names_path: &Path,
     ) -> Result<NbrdfLibrary, MaterialError> {
-        let names = acdf_core::fsio::read_bounded(
+        let names = acdf_io::fsio::read_bounded(
             names_path,
             MAX_NAMES_BYTES,
             "the size of a list of material names",
@@ -78,13 +78,13 @@ impl NbrdfLibrary {
         let count = names.lines().filter(|l| !l.trim().is_empty()).count();
         let record_bytes = 4 * WEIGHTS_PER_MATERIAL as u64;
         let expected = count as u64 * record_bytes;
-        let mut input = acdf_core::fsio::Input::open(weights_path)?;
+        let mut input = acdf_io::fsio::Input::open(weights_path)?;
         if let Some(len) = input.len() {
             if len != expected {
                 return Self::size_error(len, count, weights_path);
             }
         }
-        acdf_core::limits::check_memory(
+        acdf_io::limits::check_memory(
             &format!("reading Neural-BRDF weights {}", weights_path.display()),
             expected,
         )?;

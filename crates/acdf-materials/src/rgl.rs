@@ -123,9 +123,9 @@ pub enum RglError {
         offset: u64,
         other: String,
     },
-    /// Reading the file hit a bound or failed ([`acdf_core::fsio`]).
+    /// Reading the file hit a bound or failed ([`acdf_io::fsio`]).
     #[error("{0}")]
-    File(#[from] acdf_core::fsio::FsError),
+    File(#[from] acdf_io::fsio::FsError),
     /// A field the evaluation needs is absent.
     #[error("missing field `{0}`")]
     MissingField(String),

@@ -74,16 +74,16 @@ pub fn to_py(py: Python<'_>, e: Error) -> PyErr {
         Error::Io { path, source } if missing(source) => return not_found(py, path, message),
         Error::SamplerFile {
             path,
-            source: PersistError::File(acdf_core::fsio::FsError::Read { source, .. }),
+            source: PersistError::File(acdf_io::fsio::FsError::Read { source, .. }),
         } if missing(source) => return not_found(py, path, message),
         Error::UnknownSamplerKind { .. } | Error::SamplerFile { .. } => "SamplerFileError",
         Error::TargetNotReached { .. } => "TargetNotReachedError",
-        Error::Env(EnvError::File(acdf_core::fsio::FsError::Read { path, source }))
+        Error::Env(EnvError::File(acdf_io::fsio::FsError::Read { path, source }))
             if missing(source) =>
         {
             return not_found(py, path, message)
         }
-        Error::Env(EnvError::File(acdf_core::fsio::FsError::Read { .. })) => "IoError",
+        Error::Env(EnvError::File(acdf_io::fsio::FsError::Read { .. })) => "IoError",
         Error::Env(EnvError::Core(_)) => "InvalidArgumentError",
         Error::Env(_) => "EnvMapError",
         Error::Io { .. } | Error::Stream(_) => "IoError",

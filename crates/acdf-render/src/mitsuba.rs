@@ -220,9 +220,9 @@ pub fn export(dir: &Path, scene: &ExportScene) -> Result<PathBuf> {
     let map_path = dir.join("envmap.exr");
     let img = mitsuba_map(scene.map, export_factor(scene.map.size().0));
     let bytes = exr_bytes(&img, &map_path)?;
-    acdf_core::fsio::write_atomic(&map_path, |w| w.write_all(&bytes))?;
+    acdf_io::fsio::write_atomic(&map_path, |w| w.write_all(&bytes))?;
     let path = dir.join("scene.xml");
-    acdf_core::fsio::write_atomic(&path, |w| w.write_all(xml.as_bytes()))?;
+    acdf_io::fsio::write_atomic(&path, |w| w.write_all(xml.as_bytes()))?;
     Ok(path)
 }
 

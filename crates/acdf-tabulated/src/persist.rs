@@ -43,8 +43,8 @@
 //! never a panic.
 
 use crate::{Resolution, SliceBuilder, TabulatedBrdfSampler};
-use acdf_core::fsio::{write_atomic, FsError};
 use acdf_core::{Brdf, Rgb, Vec3};
+use acdf_io::fsio::{write_atomic, FsError};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -63,7 +63,7 @@ pub const ENVELOPE_BYTES: usize = 8 + 4 + 8 + 4;
 #[derive(Debug, thiserror::Error)]
 pub enum PersistError {
     /// Writing or reading the file failed, was refused or hit a bound
-    /// ([`acdf_core::fsio`]).
+    /// ([`acdf_io::fsio`]).
     #[error("{0}")]
     File(#[from] FsError),
     /// The first 8 bytes are not [`MAGIC`]: not a sampler file.
@@ -328,7 +328,7 @@ pub fn open(bytes: &[u8]) -> Result<&[u8], PersistError> {
 /// compared with the file's size and with the memory limit before the rest
 /// is read (a pipe or device is read no further than that length).
 pub fn read_file(path: &Path) -> Result<Vec<u8>, PersistError> {
-    let mut input = acdf_core::fsio::Input::open(path)?;
+    let mut input = acdf_io::fsio::Input::open(path)?;
     let mut bytes = input.read_up_to(HEADER_BYTES)?;
     let expected = check_header(&bytes)?;
     if let Some(found) = input.len() {
@@ -341,7 +341,7 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, PersistError> {
             });
         }
     }
-    acdf_core::limits::check_memory(
+    acdf_io::limits::check_memory(
         &format!("reading sampler file {}", path.display()),
         expected.saturating_mul(2),
     )
@@ -476,7 +476,7 @@ where
         Ok(seal(&w.into_bytes()))
     }
 
-    /// Save to `path` atomically ([`acdf_core::fsio::write_atomic`]).
+    /// Save to `path` atomically ([`acdf_io::fsio::write_atomic`]).
     pub fn save(&self, path: &Path) -> Result<(), PersistError> {
         let bytes = self.to_bytes()?;
         Ok(write_atomic(path, |w| w.write_all(&bytes))?)

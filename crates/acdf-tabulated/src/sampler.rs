@@ -163,13 +163,13 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// A sampler of `brdf` at `resolution` whose slices `builder` makes.
     /// Errors: an invalid resolution; tables whose
     /// [`memory estimate`](Resolution::memory_estimate) exceeds the memory
-    /// limit ([`acdf_core::limits`]); a material that is zero everywhere
+    /// limit ([`acdf_io::limits`]); a material that is zero everywhere
     /// ([`Brdf::is_zero_everywhere`]: there is nothing to sample in
     /// proportion to); an anisotropic material with
     /// `resolution.phi_o == 1`.
     pub fn new(brdf: Arc<dyn Brdf>, resolution: Resolution, builder: B) -> Result<Self> {
         resolution.validate()?;
-        acdf_core::limits::check_memory(
+        acdf_io::limits::check_memory(
             &format!("the tables of a sampler at {resolution}"),
             resolution.memory_estimate(),
         )?;

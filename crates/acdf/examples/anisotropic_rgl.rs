@@ -96,7 +96,7 @@ fn main() {
         ("rgb", Dtype::F32, &[np, nt, 3, nv, nv], &f32_bytes(&rgb)),
     ]);
     TensorFile::from_bytes(&bytes).expect("the file reads back");
-    acdf_core::fsio::write_atomic(std::path::Path::new(&path), |w| w.write_all(&bytes))
+    acdf_io::fsio::write_atomic(std::path::Path::new(&path), |w| w.write_all(&bytes))
         .expect("write the file");
     println!("wrote {path} ({} bytes)", bytes.len());
 }

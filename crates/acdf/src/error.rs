@@ -88,9 +88,9 @@ pub enum Error {
     },
 
     /// Writing a file failed or was refused, or reading one hit a bound
-    /// ([`acdf_core::fsio`]); the message names the file.
+    /// ([`acdf_io::fsio`]); the message names the file.
     #[error("{0}")]
-    File(#[from] acdf_core::fsio::FsError),
+    File(#[from] acdf_io::fsio::FsError),
 
     /// Writing standard output failed (a closed pipe, a full disk).
     #[error("cannot write to standard output: {0}")]

@@ -52,6 +52,7 @@
 
 pub use acdf_core as core;
 pub use acdf_cosine as cosine;
+pub use acdf_io as io;
 pub use acdf_lights as lights;
 pub use acdf_materials as materials;
 pub use acdf_tabulated as tabulated;

@@ -34,7 +34,7 @@ use proptest::prelude::*;
 const LIMIT: u64 = 256 << 20;
 
 fn setup() {
-    acdf_core::limits::set_memory_limit(LIMIT);
+    acdf_io::limits::set_memory_limit(LIMIT);
 }
 
 /// The peak resident size of this process so far, from /proc (Linux).

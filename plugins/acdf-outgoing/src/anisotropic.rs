@@ -449,7 +449,7 @@ impl AnisotropicOutgoingSampler {
         }
         let (n_theta_h, n_phi_h) = (resolution.theta_h, resolution.phi_h);
         let fine = builder.fine;
-        acdf_core::limits::check_memory(
+        acdf_io::limits::check_memory(
             "the fine tabulation of an anisotropic outgoing sampler",
             (fine as u64)
                 .saturating_mul(fine_phi as u64)

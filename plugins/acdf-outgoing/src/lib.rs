@@ -34,9 +34,9 @@
 //! breakpoints' cosines and one product (`ThetaOBlend`): no arctangent
 //! or square root stands between wo and the first table read of a call,
 //! where weights linear in u_o would need θ_o first (both are timed in
-//! `docs/performance.md`). The
-//! half-vector coordinates are those of the tabulated sampler
-//! ([`HalfMap`], φ_h measured from φ_o), so isotropic materials only.
+//! `docs/performance.md`). The half-vector coordinates are those of the
+//! tabulated sampler ([`HalfMap`], φ_h measured from φ_o), so isotropic
+//! materials only.
 //! Wherever f cos θ_i > 0 for a wo between two breakpoints, one of the two
 //! slices is positive (the support pass covered the interval), and its
 //! weight is positive unless wo sits on the other breakpoint, whose own
@@ -59,13 +59,12 @@
 //! tables p_s and half Σ_s √p_s, each scaled to unit mass. Either alone
 //! fails some materials (measured in `docs/results.md`): the mean gives
 //! fireflies on the measured materials, the root a higher variance on
-//! mirror-like ones.
-//!
-//! On the mean, a slice whose lobe is narrower than the others' weighs
-//! little, and the simplifier merges the cells of its peak and tails,
-//! hence the fireflies. The root lifts every slice's low values towards
-//! its peak, so the grid keeps vertices wherever any slice changes, but
-//! spends them on tails where a mirror-like lobe needs them on its peak.
+//! mirror-like ones. On the mean, a slice whose lobe is narrower than the
+//! others' weighs little, and the simplifier merges the cells of its peak
+//! and tails, hence the fireflies. The root lifts every slice's low values
+//! towards its peak, so the grid keeps vertices wherever any slice
+//! changes, but spends them on tails where a mirror-like lobe needs them
+//! on its peak.
 //!
 //! **Storage** counts every byte kept: the breakpoints (f32), the grid and
 //! each slice's CDF values.
@@ -457,7 +456,7 @@ impl OutgoingSampler {
         }
         let (n_theta_h, n_phi_h) = (resolution.theta_h, resolution.phi_h);
         let fine = builder.fine;
-        acdf_core::limits::check_memory(
+        acdf_io::limits::check_memory(
             "the fine tabulation of an outgoing sampler",
             (fine as u64).saturating_mul(resolution.cells_per_slice() as u64) * 8,
         )?;

@@ -23,8 +23,8 @@
 
 use super::{OutgoingBuilder, OutgoingSampler, PackedCdf2D, SharedSlices};
 use acdf_adaptive_cdf::simplify::simplifier_by_name;
-use acdf_core::fsio::write_atomic;
 use acdf_core::BxdfSampler;
+use acdf_io::fsio::write_atomic;
 use acdf_tabulated::persist::{
     open, read_file, seal, ByteReader, ByteWriter, PersistError, StoredMaterial,
 };
@@ -149,7 +149,7 @@ impl OutgoingSampler {
         seal(&w.into_bytes())
     }
 
-    /// Save to `path` atomically ([`acdf_core::fsio::write_atomic`]).
+    /// Save to `path` atomically ([`acdf_io::fsio::write_atomic`]).
     pub fn save(&self, path: &Path) -> Result<(), PersistError> {
         let bytes = self.to_bytes();
         Ok(write_atomic(path, |w| w.write_all(&bytes))?)

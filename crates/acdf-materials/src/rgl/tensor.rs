@@ -218,12 +218,12 @@ impl TensorFile {
     /// is refused from its size, before it is read).
     pub fn read(path: impl AsRef<Path>) -> Result<TensorFile, RglError> {
         let path = path.as_ref();
-        let mut input = acdf_core::fsio::Input::open(path)?;
+        let mut input = acdf_io::fsio::Input::open(path)?;
         let mut bytes = input.read_up_to(TENSOR_MAGIC.len())?;
         if bytes.as_slice() != TENSOR_MAGIC {
             return Err(RglError::BadMagic.in_file(path));
         }
-        let limit = acdf_core::limits::memory_limit();
+        let limit = acdf_io::limits::memory_limit();
         let rest = input.read_rest(
             limit / 2,
             "half the memory limit (the tables take as much again; acdf --memory-limit raises it)",

@@ -24,8 +24,8 @@ use super::{AnisotropicOutgoingSampler, PhiFrame};
 use crate::persist::{invalid, read_slice, write_slice, KIND, OUTGOING_VERSION};
 use crate::OutgoingBuilder;
 use acdf_adaptive_cdf::simplify::simplifier_by_name;
-use acdf_core::fsio::write_atomic;
 use acdf_core::BxdfSampler;
+use acdf_io::fsio::write_atomic;
 use acdf_tabulated::persist::{
     open, read_file, seal, ByteReader, ByteWriter, PersistError, StoredMaterial,
 };
@@ -91,7 +91,7 @@ impl AnisotropicOutgoingSampler {
         seal(&w.into_bytes())
     }
 
-    /// Save to `path` atomically ([`acdf_core::fsio::write_atomic`]).
+    /// Save to `path` atomically ([`acdf_io::fsio::write_atomic`]).
     pub fn save(&self, path: &Path) -> Result<(), PersistError> {
         let bytes = self.to_bytes();
         Ok(write_atomic(path, |w| w.write_all(&bytes))?)

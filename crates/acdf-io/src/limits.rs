@@ -11,7 +11,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::error::{Error, Result};
+use acdf_core::{Error, Result};
 
 /// The limit a process starts with: 4 GiB.
 pub const DEFAULT_MEMORY_LIMIT: u64 = 4 << 30;
@@ -49,20 +49,7 @@ pub fn bytes_of(count: u64, size: u64) -> u64 {
     count.saturating_mul(size)
 }
 
-/// A byte count for people: `512 B`, `17.5 MiB`, `2.0 TiB`.
-pub fn format_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 6] = ["KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
-    if bytes < 1024 {
-        return format!("{bytes} B");
-    }
-    let mut value = bytes as f64 / 1024.0;
-    let mut unit = 0;
-    while value >= 1024.0 && unit + 1 < UNITS.len() {
-        value /= 1024.0;
-        unit += 1;
-    }
-    format!("{value:.1} {}", UNITS[unit])
-}
+pub use acdf_core::error::format_bytes;
 
 /// Parse a size as the `--memory-limit` flag takes it: a number of bytes,
 /// optionally fractional and followed by `K`, `M`, `G` or `T` (powers of
