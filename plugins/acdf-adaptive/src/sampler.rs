@@ -1,5 +1,5 @@
 //! The adaptive measured-BRDF sampler: `acdf-tabulated`'s generic
-//! tabulated sampler, whose slices are [`AdaptiveCdf2D`]s built from the
+//! tabulated sampler, whose slices are [`AdaptiveCdf2D`](acdf_adaptive_cdf::AdaptiveCdf2D)s built from the
 //! tabulated half-vector values.
 
 use acdf_adaptive_cdf::AdaptiveBuilder;
