@@ -96,6 +96,9 @@
 //! `sample(u) == sample(clamp_unit(u))` bit for bit for u in [`EXTREME_U`]².
 //! wo at θ = 0, 1e-6 rad, 89.99°: `None` or a valid sample; wo at exactly
 //! 90° (z = ±0), below the horizon or not finite: always `None`, pdf 0.
+//! Grazing agreement: at θ_o ∈ [`GRAZING_THETA_DEGREES`] (0 to 89.999°),
+//! with φ_o at the configured azimuth and at 0 (a cell edge), 2,000 draws
+//! each, every valid draw's density equals `pdf(wo, wi)` to 1e-4.
 //! Extreme BRDFs ([`brdfs::extreme_brdfs`]): the constructor may return an
 //! error; a sampler it returns must draw valid samples with finite weights
 //! (no chi-square test for them).
@@ -140,7 +143,9 @@ pub use env::{
     check_env_family, check_env_sampler, env_test_maps, env_test_normals, EnvConfig, EnvTarget,
 };
 pub use report::{assert_rejected, Check, ChiSquareLine, Failure, Report};
-pub use sampler_checks::{check_sampler, check_sampler_family, SamplerConfig, EXTREME_U};
+pub use sampler_checks::{
+    check_sampler, check_sampler_family, SamplerConfig, EXTREME_U, GRAZING_THETA_DEGREES,
+};
 
 /// One `#[test]` running [`check_sampler_family`] on `build` with `brdfs`
 /// (an expression giving `Vec<Arc<dyn Brdf>>` or an array of them) and an

@@ -48,6 +48,9 @@ pub struct SamplerConfig {
     pub extreme_samples: usize,
     /// Draws per wo on which the weight f cos θ_i / pdf is checked.
     pub weight_samples: usize,
+    /// Draws per wo of the grazing agreement check ([`GRAZING_THETA_DEGREES`]
+    /// at two azimuths).
+    pub grazing_samples: usize,
     /// The largest share of f cos θ_i that may lie where the pdf is 0 (see
     /// [`missed_share`]), at each configured wo, when a BRDF is given;
     /// `None` for a sampler that does not stand for its BRDF (the
@@ -72,6 +75,7 @@ impl Default for SamplerConfig {
             quadrature_splits: (1, 4),
             extreme_samples: 20_000,
             weight_samples: 16_384,
+            grazing_samples: 2_000,
             max_missed_share: Some(1e-7),
             support_cells: (128, 256),
         }
@@ -102,6 +106,41 @@ pub const EXTREME_U: [f32; 16] = [
     f32::INFINITY,
     f32::NEG_INFINITY,
 ];
+
+/// θ_o of the agreement check, in degrees: from the pole to a thousandth
+/// of a degree above the horizon, where wo + wi nearly cancels for the
+/// draws near the horizon on the other side and the half vector of a
+/// naive formulation keeps few digits.
+pub const GRAZING_THETA_DEGREES: [f32; 8] = [0.0, 45.0, 80.0, 85.0, 89.0, 89.9, 89.99, 89.999];
+
+/// Agreement of `sample` and `pdf` from the pole to the horizon: at each of
+/// [`GRAZING_THETA_DEGREES`], with φ_o at the configured azimuth and at 0
+/// (an edge of every φ_o grid of the tabulated samplers), every valid draw's
+/// density must equal `pdf(wo, wi)` of its own wi to 1e-4 relative, and
+/// the draw must be valid (unit, above the horizon, finite).
+fn check_grazing_agreement(
+    report: &mut Report,
+    subject: &str,
+    sampler: &dyn BxdfSampler,
+    brdf: Option<&dyn Brdf>,
+    config: &SamplerConfig,
+) {
+    let mut rng = Pcg64::seed_from_u64(config.seed ^ 0x9a2_1e6);
+    for theta in GRAZING_THETA_DEGREES {
+        for phi in [config.wo_phi, 0.0] {
+            let wo = outgoing(theta, phi);
+            let case = format!("{subject} {}(grazing θ_o = {theta}°)", describe(brdf, wo));
+            guarded(report, &case, |r| {
+                for _ in 0..config.grazing_samples {
+                    let u = Vec2::new(rng.random(), rng.random());
+                    if let Some(s) = sampler.sample(wo, u) {
+                        check_sample(r, &case, &s, sampler.pdf(wo, s.wi));
+                    }
+                }
+            });
+        }
+    }
+}
 
 /// The outgoing direction at (θ, φ), with θ = 0 exactly the pole.
 fn outgoing(theta_degrees: f32, phi: f32) -> Vec3 {
@@ -805,6 +844,7 @@ fn check_one(
         check_support(report, subject, sampler, brdf, config);
     }
     check_extreme_wo(report, subject, sampler, brdf, config);
+    check_grazing_agreement(report, subject, sampler, brdf, config);
 }
 
 /// Run the whole battery on one sampler: chi-square and consistency at each

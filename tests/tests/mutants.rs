@@ -623,3 +623,56 @@ fn rejects_a_partly_lit_cell_left_at_zero() {
     );
     assert_rejected(&report, Check::Support);
 }
+
+// ------------------------------------ wi re-rounded in f32 before the lookup
+
+/// The uniform tabulated sampler of the built-in near-mirror, whose `pdf`
+/// first normalises wi again in `f32`, as a caller that renormalises its
+/// directions would: an ulp of wi is a different direction where wo + wi
+/// nearly cancels, so at grazing outgoing angles the density it looks up is
+/// not the one the draw had.
+struct RenormalisedLookup(acdf_uniform::UniformBrdfSampler);
+
+impl BxdfSampler for RenormalisedLookup {
+    fn name(&self) -> &str {
+        "mutant-renormalised-lookup"
+    }
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        self.0.sample(wo, u)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let length = (wi.x * wi.x + wi.y * wi.y + wi.z * wi.z).sqrt();
+        self.0.pdf(wo, wi / length)
+    }
+    fn storage_bytes(&self) -> usize {
+        self.0.storage_bytes()
+    }
+}
+
+/// The grazing agreement check (θ_o up to 89.999°) sees the re-rounded
+/// lookup: near the horizon the mutant's densities differ from its draws'
+/// by far more than 1e-4.
+#[test]
+fn rejects_a_pdf_that_renormalises_wi_in_f32() {
+    let brdf = acdf_materials::builtin("near-mirror").unwrap();
+    let resolution = acdf_tabulated::Resolution::ISOTROPIC;
+    let inner = acdf_uniform::UniformBrdfSampler::new(
+        brdf.clone(),
+        resolution,
+        acdf_uniform::PiecewiseConstantBuilder,
+    )
+    .unwrap();
+    let mutant = RenormalisedLookup(inner);
+    let config = SamplerConfig {
+        samples: 100_000,
+        wo_theta_degrees: vec![30.0],
+        extreme_samples: 500,
+        ..SamplerConfig::default()
+    };
+    let report = check_sampler("mutant_renormalised_lookup", &mutant, Some(&*brdf), &config);
+    assert_rejected(&report, Check::PdfMismatch);
+    assert!(
+        report.failures.iter().any(|f| f.case.contains("grazing")),
+        "the grazing agreement check should see it:\n{report}"
+    );
+}

@@ -168,6 +168,47 @@ fn pdf_of_sampled_directions_matches_the_sampled_pdf() {
     }
 }
 
+/// `acdf sample | acdf pdf` at grazing outgoing angles: `pdf` reads the
+/// drawn directions back bit for bit (it does not normalise a unit
+/// direction again), so every density equals the drawn one to 1e-4. Before
+/// that, 176 of nickel's 2,832 draws at 89.9° differed by more than 1e-4,
+/// and near-mirror's by up to 13 times at 89.999°.
+#[test]
+fn pdf_of_grazing_draws_matches_the_sampled_pdf() {
+    for (material, sampler, wo) in [
+        ("builtin:nickel", "adaptive", "89.9,0"),
+        ("builtin:near-mirror", "adaptive", "89.999,0"),
+        ("builtin:nickel", "outgoing:chi2", "89.99,0"),
+        ("builtin:near-mirror", "uniform", "89.999,45"),
+    ] {
+        let args = ["--material", material, "--sampler", sampler, "--wo", wo];
+        let mut sample_args = vec!["sample"];
+        sample_args.extend(args);
+        sample_args.extend(["--n", "3000", "--seed", "11"]);
+        let s = acdf(&sample_args);
+        assert_ok(&s);
+        let csv = stdout(&s);
+        let mut pdf_args = vec!["pdf"];
+        pdf_args.extend(args);
+        let p = acdf_stdin(&pdf_args, &csv);
+        assert_ok(&p);
+        let pdfs: Vec<f64> = stdout(&p).lines().map(|l| l.parse().unwrap()).collect();
+        let rows: Vec<Vec<f64>> = csv.lines().skip(1).map(parse_floats).collect();
+        assert_eq!(pdfs.len(), rows.len());
+        let mut valid = 0;
+        for (row, pdf) in rows.iter().zip(&pdfs) {
+            if row[4] == 1.0 {
+                valid += 1;
+                assert!(
+                    (row[3] - pdf).abs() <= 1e-4 * row[3],
+                    "{material} {sampler} wo {wo}: drawn {row:?}, pdf {pdf}"
+                );
+            }
+        }
+        assert!(valid > 1000, "{material} {sampler} wo {wo}: {valid} draws");
+    }
+}
+
 #[test]
 fn eval_prints_rgb_per_line() {
     let o = acdf_stdin(

@@ -10,6 +10,17 @@
 //!   equals `pdf(wo, wi)`. A draw that would land at or below the horizon is
 //!   `None`; its probability is the mass the pdf does not cover, so ∫ pdf ≤ 1.
 //! - `pdf` is finite and non-negative for every input, and 0 for `wi.z <= 0`.
+//! - At the degenerate points the answer is fixed: `wi` on the horizon
+//!   (`wi.z == 0`) has density 0 and is never drawn; `wi = -wo` (no half
+//!   vector, possible only for a `wo` on the horizon, which is not valid)
+//!   has density 0. Near them, at grazing `wo`, the density is computed from
+//!   quantities that keep their digits where `wo + wi` nearly cancels (the
+//!   tabulated samplers take wo·h as |wo + wi| / 2), and the battery checks
+//!   the agreement of `sample` and `pdf` up to θ_o = 89.999°.
+//! - `pdf(wo, wi)` looks up `wi` as given, to the last bit: a caller that
+//!   normalises a direction the sampler returned before asking its density
+//!   may ask for a neighbouring direction, which at grazing angles can lie
+//!   in another cell of the tables.
 
 use glam::{Vec2, Vec3};
 

@@ -798,6 +798,14 @@ impl SliceGeometry {
     /// takes the square root and the division off the chain of every `pdf`
     /// call, as [`draw_from_angles`](Self::draw_from_angles) does for
     /// `sample`.
+    ///
+    /// wo·h is |wo + wi| / 2 (for unit wo and wi, wo·(wo + wi) = 1 + wo·wi
+    /// = |wo + wi|² / 2), not the dot product of wo with the normalised sum:
+    /// where wo + wi nearly cancels (grazing wo, wi near the horizon on the
+    /// other side) the dot product is a difference of nearly equal terms
+    /// and keeps few of its digits, so one ulp of wi could move the density
+    /// by orders of magnitude, whereas the length keeps its relative
+    /// precision.
     #[inline(always)]
     fn coordinates_of(&self, wo: Vec3, wi: Vec3) -> TableCoordinates {
         let sum = wi + wo;
@@ -806,7 +814,7 @@ impl SliceGeometry {
         let scale = length_squared.sqrt().recip();
         let rho = sin_theta(sum);
         let sin_h = rho * scale;
-        let wo_h = wo.dot(sum) * scale;
+        let wo_h = 0.5 * length_squared * scale;
         let v = self.map.v_of(rho, sum.z, scale).min(ONE_MINUS_EPSILON);
         let x = unit_azimuth(self.to_slice(sum));
         TableCoordinates {

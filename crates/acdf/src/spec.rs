@@ -333,7 +333,7 @@ pub fn parse_direction_degrees(s: &str) -> Result<acdf_core::Vec3, Error> {
     let (theta, phi) = parse_angles_degrees(s, 0.0..90.0, "[0, 90) degrees (above the horizon)")?;
     let (sin_t, cos_t) = theta.to_radians().sin_cos();
     let (sin_p, cos_p) = phi.to_radians().sin_cos();
-    Ok(direction_from_xyz(sin_t * cos_p, sin_t * sin_p, cos_t))
+    Ok(normalized_direction(sin_t * cos_p, sin_t * sin_p, cos_t))
 }
 
 /// The finite angles (θ, φ) of `THETA_DEG,PHI_DEG`, θ in `range` (which
@@ -380,7 +380,27 @@ pub(crate) fn parse_angles_degrees(
 /// narrowed to `f32`: any finite input works, 1e-30 and 1e300 alike (the
 /// components are scaled by the largest before normalising). The zero
 /// vector gives zero.
+///
+/// A direction that is already of unit length to `f32` precision (within
+/// [`UNIT_LENGTH_TOLERANCE`] of 1 in squared length, as every direction
+/// `acdf sample` prints is) is kept as given, narrowed to `f32` and not
+/// normalised again: normalising moves its components by an ulp, and at
+/// grazing angles, where the half vector of wo and wi is the small
+/// difference of nearly opposite vectors, an ulp of wi is a different
+/// direction. So `acdf sample | acdf pdf` looks up exactly the direction
+/// that was drawn.
 pub fn direction_from_xyz(x: f64, y: f64, z: f64) -> acdf_core::Vec3 {
+    let narrowed = acdf_core::Vec3::new(x as f32, y as f32, z as f32);
+    let squared = narrowed.as_dvec3().length_squared();
+    if (squared - 1.0).abs() <= UNIT_LENGTH_TOLERANCE {
+        return narrowed;
+    }
+    normalized_direction(x, y, z)
+}
+
+/// (x, y, z) normalised in `f64`, then narrowed to `f32`; zero for the
+/// zero vector or a non-finite one.
+fn normalized_direction(x: f64, y: f64, z: f64) -> acdf_core::Vec3 {
     let largest = x.abs().max(y.abs()).max(z.abs());
     if !(largest > 0.0 && largest.is_finite()) {
         return acdf_core::Vec3::ZERO;
@@ -388,6 +408,11 @@ pub fn direction_from_xyz(x: f64, y: f64, z: f64) -> acdf_core::Vec3 {
     let v = glam::DVec3::new(x / largest, y / largest, z / largest);
     (v / v.length()).as_vec3()
 }
+
+/// How far from 1 the squared length of an input direction may be for
+/// [`direction_from_xyz`] to keep it as given: 4e-6, a few times what a
+/// unit vector rounded to `f32` and printed can be off by.
+pub const UNIT_LENGTH_TOLERANCE: f64 = 4e-6;
 
 /// `s` for an error message: whole when short, otherwise its first 32
 /// characters and its length, so that a huge argument or line is not echoed.

@@ -842,7 +842,9 @@ fn coordinates<const ONE: bool>(map: HalfMap, rotation: Vec2, wo: Vec3, wi: Vec3
     let scale = length_squared.sqrt().recip();
     let rho = sin_theta(sum);
     let sin_h = rho * scale;
-    let wo_h = wo.dot(sum) * scale;
+    // |wo + wi| / 2, which keeps its digits where the sum nearly cancels
+    // (see `TabulatedBrdfSampler`'s `coordinates_of` in acdf-tabulated).
+    let wo_h = 0.5 * length_squared * scale;
     if ONE && !(wo_h > 0.0) {
         return Coordinates::default();
     }
