@@ -219,6 +219,19 @@ impl LatLong {
         )
     }
 
+    /// The direction of `p` moved, if need be, inside its texel by the
+    /// margin, so that a round trip through it finds the texel of `p`: for
+    /// the rare draw within rounding of its texel's edge whose direction
+    /// would land in a neighbour (see `finish_draw`).
+    pub fn direction_of_point_inside(&self, p: Vec2) -> Vec3 {
+        let (x, y) = (p.x * self.wf, p.y * self.hf);
+        let column = grid_cell(x, self.last_col);
+        let row = grid_cell(y, self.last_row);
+        let m = self.margin;
+        let fraction = Vec2::new(x - column as f32, y - row as f32).clamp(m, Vec2::ONE - m);
+        self.direction_in_texel(column, row, fraction)
+    }
+
     /// The unit direction at the centre of texel (column, row) in solid
     /// angle (cos θ halfway through the row, φ halfway through the column).
     pub fn texel_direction(&self, column: usize, row: usize) -> Vec3 {

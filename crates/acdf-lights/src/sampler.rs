@@ -107,6 +107,15 @@ impl<D: Distribution2D> LatLongSampler<D> {
 /// The sphere sample of the distribution's draw `s`, whose density at a
 /// texel is `density(column, row)` (for the draw's own texel when the draw
 /// is inside it) and `pdf(dir)` otherwise.
+///
+/// A draw near its texel's edge can have a direction that rounds into the
+/// neighbouring texel; its density is then that texel's, `pdf(dir)`. Where
+/// that neighbour has no mass (a compensated or per-normal table is 0 over
+/// whole regions), the draw would fail although its own texel has mass:
+/// it is moved inside its texel by the margin instead
+/// ([`LatLong::direction_of_point_inside`]), and has its texel's density.
+/// The points so moved lie within rounding of a texel edge, a share of the
+/// draws of order 1e-6.
 #[inline(always)]
 pub fn finish_draw(
     grid: &LatLong,
@@ -115,16 +124,28 @@ pub fn finish_draw(
     pdf: impl FnOnce(Vec3) -> f32,
 ) -> Option<SphereSample> {
     let (dir, column, row, inside) = grid.direction_of_point(s.p);
-    let pdf = if inside {
-        density(column, row) * grid.inv_jacobian(row)
+    let (dir, pdf) = if inside {
+        (dir, density(column, row) * grid.inv_jacobian(row))
     } else {
-        pdf(dir)
+        let p = pdf(dir);
+        if positive_finite(p) {
+            (dir, p)
+        } else {
+            (
+                grid.direction_of_point_inside(s.p),
+                density(column, row) * grid.inv_jacobian(row),
+            )
+        }
     };
-    // pdf > 0 and finite, as one integer compare: the bit patterns of the
-    // positive finite floats are 1 ..= 0x7f7f_ffff (NaN, infinities, zeros
-    // and negatives fall outside).
-    let positive_finite = pdf.to_bits().wrapping_sub(1) < 0x7f7f_ffff;
-    positive_finite.then_some(SphereSample { dir, pdf })
+    positive_finite(pdf).then_some(SphereSample { dir, pdf })
+}
+
+/// pdf > 0 and finite, as one integer compare: the bit patterns of the
+/// positive finite floats are 1 ..= 0x7f7f_ffff (NaN, infinities, zeros and
+/// negatives fall outside).
+#[inline(always)]
+fn positive_finite(pdf: f32) -> bool {
+    pdf.to_bits().wrapping_sub(1) < 0x7f7f_ffff
 }
 
 /// The solid-angle density of `dir` under a distribution over `grid`'s
