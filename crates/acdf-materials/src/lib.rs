@@ -122,6 +122,16 @@ pub enum MaterialError {
         records: usize,
     },
 
+    /// The list of material names gives one name twice, so that the name
+    /// would select one of two records without a word.
+    #[error("{}: the list of material names gives `{name}` twice (names {first} and {second}); each name must select one record", .path.display())]
+    DuplicateName {
+        path: PathBuf,
+        name: String,
+        first: usize,
+        second: usize,
+    },
+
     /// A material name that the library (or the list of built-ins) does not have.
     #[error("unknown material `{name}`; valid names: {}", .known.join(", "))]
     UnknownMaterial { name: String, known: Vec<String> },

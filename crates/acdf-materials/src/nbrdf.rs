@@ -121,8 +121,9 @@ impl NbrdfLibrary {
     }
 
     /// Build the library from the weight file's bytes and the names file's
-    /// text (one name per line, blank lines ignored); `origin` names the
-    /// weight file in errors. The byte count must be 2700 per name.
+    /// text (one name per line, blank lines ignored, each name once);
+    /// `origin` names the weight file in errors. The byte count must be
+    /// 2700 per name.
     pub fn from_bytes(
         weights: &[u8],
         names: &str,
@@ -135,6 +136,17 @@ impl NbrdfLibrary {
             .filter(|l| !l.is_empty())
             .map(str::to_owned)
             .collect();
+        let mut seen = std::collections::HashMap::with_capacity(names.len());
+        for (k, name) in names.iter().enumerate() {
+            if let Some(first) = seen.insert(name.as_str(), k) {
+                return Err(MaterialError::DuplicateName {
+                    path: origin.to_owned(),
+                    name: name.clone(),
+                    first: first + 1,
+                    second: k + 1,
+                });
+            }
+        }
         let record_bytes = 4 * WEIGHTS_PER_MATERIAL as u64;
         let got = weights.len() as u64;
         if got == 0 || got / record_bytes * record_bytes != got {
@@ -644,6 +656,17 @@ mod tests {
                 ..
             }
         ));
+
+        // A name given twice would pick the first record for both.
+        let err = NbrdfLibrary::from_bytes(&two, "nickel\n\nnickel\n", "w.f32").unwrap_err();
+        assert!(
+            matches!(
+                &err,
+                MaterialError::DuplicateName { name, first: 1, second: 2, .. } if name == "nickel"
+            ),
+            "{err}"
+        );
+        assert!(err.to_string().contains("`nickel` twice"), "{err}");
 
         let mut with_nan = two.clone();
         let at = 4 * (WEIGHTS_PER_MATERIAL + 300);
