@@ -238,3 +238,59 @@ proptest! {
         prop_assert!(AdaptiveBrdfSampler::from_bytes(&bytes).is_err());
     }
 }
+
+/// `bytes` with the resolution field `index` (0 θ_o, 1 φ_o, 2 θ_h, 3 φ_h) of
+/// the 4x1x16x8 files of [`small`] set to `value`, and the checksum made
+/// valid again: an edit a checksum does not catch.
+fn with_resolution_field(bytes: &[u8], index: usize, value: u32) -> Vec<u8> {
+    let body = &bytes[ENVELOPE_BYTES - 4..bytes.len() - 4];
+    let fields: Vec<u8> = [4u32, 1, 16, 8]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let at = body
+        .windows(fields.len())
+        .position(|w| w == fields.as_slice())
+        .expect("the resolution fields");
+    let mut body = body.to_vec();
+    let field = at + 4 * index;
+    body[field..field + 4].copy_from_slice(&value.to_le_bytes());
+    acdf_tabulated::persist::seal(&body)
+}
+
+/// A resolution edited in the header, with the checksum recomputed, is
+/// refused: the slices' own tables say which θ_h and φ_h they were built on.
+#[test]
+fn an_edited_resolution_is_refused() {
+    let files = [
+        ("uniform", uniform("nickel").to_bytes().unwrap()),
+        ("adaptive:dp", adaptive("nickel", "dp").to_bytes().unwrap()),
+        (
+            "adaptive:chi2",
+            adaptive("nickel", "chi2").to_bytes().unwrap(),
+        ),
+    ];
+    for (name, bytes) in &files {
+        // The unedited body, resealed, still loads.
+        let same = with_resolution_field(bytes, 2, 16);
+        assert_eq!(&same, bytes, "{name}");
+        for (index, value) in [(2, 1), (3, 1), (2, 7), (3, 3)] {
+            let edited = with_resolution_field(bytes, index, value);
+            let err = match name.starts_with("uniform") {
+                true => UniformBrdfSampler::from_bytes(&edited).map(|_| ()),
+                false => AdaptiveBrdfSampler::from_bytes(&edited).map(|_| ()),
+            }
+            .expect_err(&format!("{name}: field {index} = {value} loaded"));
+            assert!(
+                matches!(
+                    err,
+                    PersistError::Invalid {
+                        field: "resolution",
+                        ..
+                    }
+                ),
+                "{name}: field {index} = {value}: {err}"
+            );
+        }
+    }
+}

@@ -1011,6 +1011,22 @@ impl Distribution2D for AdaptiveCdf2D {
 /// lies in one density cell when it lies inside one marginal segment and,
 /// within it, one conditional segment.
 impl SliceDistribution for AdaptiveCdf2D {
+    /// The kept vertices are grid lines of the table: every marginal
+    /// position is a multiple of 1 / `n_y` and every conditional position a
+    /// multiple of 1 / `n_x` (to well within one cell), and there are at
+    /// most `n_y` + 1 marginal vertices.
+    fn fits_grid(&self, n_x: usize, n_y: usize) -> bool {
+        let on_grid = |positions: &[f32], n: usize| {
+            positions.iter().all(|&x| {
+                let k = x as f64 * n as f64;
+                (k - k.round()).abs() <= 1e-3
+            })
+        };
+        self.marginal_vertex_count() <= n_y + 1
+            && on_grid(self.marginal_positions(), n_y)
+            && (0..self.conditional_count()).all(|j| on_grid(self.conditional_positions(j), n_x))
+    }
+
     /// Whether the box [p.x ± margin.x] × [p.y ± margin.y] lies inside one
     /// marginal segment and, within it, one conditional segment, so that
     /// the density is the same all over it (false for a box reaching outside

@@ -42,7 +42,7 @@
 //! constructor would validate it. Any byte string gives a [`PersistError`],
 //! never a panic.
 
-use crate::{Resolution, SliceBuilder, TabulatedBrdfSampler};
+use crate::{Resolution, SliceBuilder, SliceDistribution, TabulatedBrdfSampler};
 use acdf_core::{Brdf, Rgb, Vec3};
 use acdf_io::fsio::{write_atomic, FsError};
 use std::path::Path;
@@ -536,6 +536,20 @@ where
             slices.push(B::Dist::decode(&mut r)?);
         }
         r.finish()?;
+        // The resolution's θ_h and φ_h are not implied by the slice count:
+        // each slice's own table must fit them.
+        if let Some(k) = slices
+            .iter()
+            .position(|d| !d.fits_grid(resolution.phi_h, resolution.theta_h))
+        {
+            return Err(PersistError::Invalid {
+                field: "resolution",
+                reason: format!(
+                    "θ_h × φ_h = {} × {} does not fit the table of slice {k}",
+                    resolution.theta_h, resolution.phi_h
+                ),
+            });
+        }
         let brdf = Arc::new(StoredMaterial {
             name: material,
             isotropic,

@@ -25,6 +25,16 @@ use acdf_core::{Distribution2D, Result, Sample2D, Vec2};
 /// (bit for bit), since the sampler's one-at-a-time and batch paths rely on
 /// giving identical results.
 pub trait SliceDistribution: Distribution2D + Send + Sync + Sized {
+    /// Whether this distribution can be the table of a slice tabulated on
+    /// `n_x` (φ_h) × `n_y` (θ_h) cells: a sampler file records its
+    /// resolution beside its slices, and a load checks the one against the
+    /// other, so that an edited resolution is refused rather than used. The
+    /// default accepts any grid; a distribution that knows its grid answers.
+    fn fits_grid(&self, n_x: usize, n_y: usize) -> bool {
+        let _ = (n_x, n_y);
+        true
+    }
+
     /// Whether `pdf` is the same at every point of the box
     /// [p.x ± margin.x] × [p.y ± margin.y], given that each margin is under
     /// half a tabulation cell.

@@ -882,6 +882,11 @@ impl PiecewiseConstant2D {
 }
 
 impl SliceDistribution for PiecewiseConstant2D {
+    /// A slice's table is `n_x` columns by `n_y` rows.
+    fn fits_grid(&self, n_x: usize, n_y: usize) -> bool {
+        (self.nx, self.ny) == (n_x, n_y)
+    }
+
     /// [`sample`](Distribution2D::sample) and
     /// [`same_cell_around`](Self::same_cell_around)`(sample.p, margin)` at
     /// once. The draw knows its cell (k, j), so the box test takes the
