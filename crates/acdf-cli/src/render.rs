@@ -130,6 +130,11 @@ fn brdf_help() -> String {
 /// The longest `--seconds` accepted: a year.
 const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
 
+/// The shortest `--seconds` accepted: a millisecond. Shorter budgets are
+/// below what the clock resolves, and the equal-CPU-time model divides by
+/// the budget (a subnormal one made every modelled RMSE infinite).
+const MIN_SECONDS: f64 = 1e-3;
+
 /// The side of the map the procedural sky is baked into (width; the height
 /// is half).
 const SKY_MAP_WIDTH: usize = 512;
@@ -149,10 +154,12 @@ pub fn run(a: Args) -> Result<()> {
     let height = check_sizes(&a)?;
     let strategies = parse_strategies(&a.strategies)?;
     let m = material(&a.material)?;
-    let map = Arc::new(match &a.envmap {
-        Some(p) => EnvMap::open(p)?,
-        None => sky_map()?,
-    });
+    // A map given on the command line is read as every environment command
+    // reads one (a black map, with nothing to sample, is refused).
+    let map = match &a.envmap {
+        Some(p) => crate::env_common::load_map(p, false)?,
+        None => Arc::new(sky_map()?),
+    };
     if let Some(dir) = &a.export_mitsuba {
         let path = acdf_render::mitsuba::export(
             dir,
@@ -635,11 +642,13 @@ fn check_sizes(a: &Args) -> Result<usize> {
         });
     }
     if let Some(s) = a.seconds {
-        if !(s > 0.0 && s <= MAX_SECONDS) {
+        if !((MIN_SECONDS..=MAX_SECONDS).contains(&s)) {
             return Err(Error::InvalidArgument {
                 what: "seconds",
                 value: format!("{s:?}"),
-                reason: format!("must be a positive number of seconds, at most {MAX_SECONDS:e}"),
+                reason: format!(
+                    "must be a number of seconds from {MIN_SECONDS:e} to {MAX_SECONDS:e}"
+                ),
             });
         }
     }

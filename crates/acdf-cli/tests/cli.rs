@@ -919,6 +919,9 @@ fn render_equal_time_runs_at_least_one_pass() {
         ("--mis-fraction=-0.1", "mis-fraction"),
         ("--mis-fraction=NaN", "mis-fraction"),
         ("--timing-repeats=0", "timing-repeats"),
+        // A subnormal budget made every equal-CPU-time RMSE infinite.
+        ("--seconds=1e-320", "seconds"),
+        ("--seconds=0", "seconds"),
     ] {
         let o = acdf(&[
             "render",
@@ -945,6 +948,26 @@ fn render_rejects_a_missing_envmap() {
         dir.path().to_str().unwrap(),
     ]);
     assert_one_line_error(&o, "/nonexistent/sky.exr");
+}
+
+/// A map that is black everywhere has nothing to sample: `render` refuses
+/// it as the environment commands do.
+#[test]
+fn render_rejects_a_black_envmap() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = dir.path().join("black.hdr");
+    let img = image::Rgb32FImage::from_pixel(16, 8, image::Rgb([0.0, 0.0, 0.0]));
+    image::DynamicImage::ImageRgb32F(img).save(&map).unwrap();
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:lambert",
+        "--envmap",
+        map.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "every texel is 0");
 }
 
 /// A white latitude-longitude map written as Radiance `.hdr` makes a
