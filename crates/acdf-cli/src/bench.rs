@@ -453,6 +453,12 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
             reason: "must be at least 1".into(),
         });
     }
+    // Per draw: its uniform pair, and the samples, directions and densities
+    // the batch runs write (under 64 bytes in all).
+    acdf_io::limits::check_memory(
+        "the benchmark's draws (--samples)",
+        acdf_io::limits::bytes_of(config.samples as u64, 64),
+    )?;
     let load_average = load_average();
     let spec = material_spec(&config.material)?;
     let material = load_material(&spec, config.nbrdf_weights.as_deref())?;

@@ -141,14 +141,16 @@ impl MeasureArgs {
                     .into(),
             });
         }
-        Ok(EfficiencyConfig {
+        let config = EfficiencyConfig {
             samples_per_direction: self.samples,
             timing_samples_per_direction: self.timing_samples,
             timing_repeats: self.timing_repeats,
             grid: parse_quadrature(&self.quadrature)?,
             seed: self.seed,
             ..EfficiencyConfig::default()
-        })
+        };
+        config.check_memory()?;
+        Ok(config)
     }
 
     pub fn describe(&self, config: &EfficiencyConfig) -> String {

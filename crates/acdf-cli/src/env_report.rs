@@ -71,6 +71,12 @@ pub fn run(a: Args) -> Result<()> {
             reason: "need at least 2 Monte Carlo draws, 1 to time and 1 timed pass".into(),
         });
     }
+    // The timed draws' uniform pairs are kept (8 bytes a draw); the Monte
+    // Carlo draws are made one at a time.
+    acdf_io::limits::check_memory(
+        "the timed draws (--timing-samples)",
+        acdf_io::limits::bytes_of(a.timing_samples as u64, 8),
+    )?;
     let config = EnvReportConfig {
         mc_samples: a.mc_samples,
         timing_samples: a.timing_samples,

@@ -182,7 +182,10 @@ fn main() -> ExitCode {
             message.replace('\n', " ")
         );
     }));
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return parse_failure(e),
+    };
     acdf_io::limits::set_memory_limit(cli.memory_limit);
     // Ctrl-C or a kill during a write removes the temporary file.
     if let Err(e) = acdf_io::fsio::install_interrupt_cleanup() {
@@ -194,6 +197,24 @@ fn main() -> ExitCode {
         Err(e) => {
             eprintln!("acdf: error: {e}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+/// What a command line that does not run a subcommand ends with: the help
+/// or version asked for, on standard output, written as every other output
+/// is (a full disk is an error, not a silent success); or clap's usage
+/// error, on stderr, with clap's status.
+fn parse_failure(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    match e.kind() {
+        ErrorKind::DisplayHelp | ErrorKind::DisplayVersion => {
+            print_or_exit(format_args!("{}", e.render()));
+            ExitCode::SUCCESS
+        }
+        _ => {
+            eprint_lossy(format_args!("{}", e.render()));
+            ExitCode::from(e.exit_code().clamp(0, 255) as u8)
         }
     }
 }

@@ -94,7 +94,7 @@ pub struct Args {
     /// Seed of the uniform numbers.
     #[arg(long, default_value_t = 7)]
     seed: u64,
-    /// Threads (0: all cores).
+    /// Threads (0: all cores; at most four per core).
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// Write the scene for Mitsuba 3 (DIR/scene.xml, DIR/envmap.exr) and
@@ -129,6 +129,13 @@ fn brdf_help() -> String {
 
 /// The longest `--seconds` accepted: a year.
 const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
+
+/// The most `--threads` accepted: four per core. More threads than that
+/// only contend for the cores, and each takes a stack: an unchecked count
+/// started thousands before the system refused.
+fn max_threads() -> usize {
+    4 * std::thread::available_parallelism().map_or(1, |n| n.get())
+}
 
 /// The shortest `--seconds` accepted: a millisecond. Shorter budgets are
 /// below what the clock resolves, and the equal-CPU-time model divides by
@@ -651,6 +658,16 @@ fn check_sizes(a: &Args) -> Result<usize> {
                 ),
             });
         }
+    }
+    let most = max_threads();
+    if a.threads > most {
+        return Err(Error::InvalidArgument {
+            what: "threads",
+            value: a.threads.to_string(),
+            reason: format!(
+                "at most {most} (four per core of this machine), or 0 for one per core"
+            ),
+        });
     }
     if a.timing_repeats == 0 {
         return Err(Error::InvalidArgument {

@@ -922,6 +922,8 @@ fn render_equal_time_runs_at_least_one_pass() {
         // A subnormal budget made every equal-CPU-time RMSE infinite.
         ("--seconds=1e-320", "seconds"),
         ("--seconds=0", "seconds"),
+        // Thousands of threads ran for minutes before the system refused.
+        ("--threads=100000", "threads"),
     ] {
         let o = acdf(&[
             "render",

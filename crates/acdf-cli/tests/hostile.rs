@@ -806,14 +806,19 @@ fn error_messages_name_their_cause() {
 }
 
 /// The kill test: bakes and builds killed at seeded random points (SIGKILL,
-/// SIGTERM, SIGINT in turn) leave the old file or the new one, never a cut
-/// or mixed one; after SIGTERM and SIGINT no temporary file is left (only
-/// SIGKILL can leave one, beside the target, under a name ending
+/// SIGTERM, SIGINT, SIGQUIT, SIGUSR1, SIGALRM, SIGXFSZ, SIGABRT, SIGHUP in
+/// turn; SIGXFSZ is caught and changes nothing) leave the old file or the
+/// new one, never a cut or mixed one; after any signal but SIGKILL no
+/// temporary file is left (only SIGKILL can leave
+/// one, beside the target, under a name ending
 /// `.acdf-tmp`). Every other round waits for the write to begin (a new
 /// file in the folder, or the target changing) and kills within 20 ms of
 /// it, since a uniformly random time rarely lands in the write itself.
 #[test]
 fn kill_at_random_points_leaves_the_old_or_the_new_file() {
+    const SIGNALS: [&str; 9] = [
+        "KILL", "TERM", "INT", "QUIT", "USR1", "ALRM", "XFSZ", "ABRT", "HUP",
+    ];
     use rand::{Rng, SeedableRng};
     let dir = tempfile::tempdir().unwrap();
     let (old_path, new_path) = (dir.path().join("old"), dir.path().join("new"));
@@ -857,7 +862,7 @@ fn kill_at_random_points_leaves_the_old_or_the_new_file() {
             std::fs::read(&new_path).unwrap(),
         );
         let keep = [name, "old", "new"];
-        for round in 0..8 {
+        for round in 0..SIGNALS.len() {
             std::fs::write(&target, &old).unwrap();
             let before = std::fs::metadata(&target).unwrap().modified().unwrap();
             let mut a = new_args.clone();
@@ -883,7 +888,7 @@ fn kill_at_random_points_leaves_the_old_or_the_new_file() {
                 }
                 std::thread::sleep(Duration::from_secs_f64(rng.random::<f64>() * 0.02));
             }
-            let sig = ["KILL", "TERM", "INT"][round % 3];
+            let sig = SIGNALS[round];
             let _ = Command::new("kill")
                 .args([format!("-{sig}"), child.id().to_string()])
                 .status();
@@ -908,4 +913,68 @@ fn kill_at_random_points_leaves_the_old_or_the_new_file() {
         std::fs::remove_file(&target).unwrap();
     }
     println!("{cut_while_writing} SIGKILLs landed while a temporary file existed");
+}
+
+/// Help and version written to a full disk are a failure, like any other
+/// output (they exited 0 silently), and still succeed on a working stdout.
+#[test]
+fn help_and_version_to_a_full_disk_fail() {
+    for flag in ["--help", "--version", "-h", "-V"] {
+        let full = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        let o = finish(command("", &[flag]).stdout(full).spawn().unwrap(), 60);
+        assert_one_line_error(&o, "cannot write to standard output");
+        let o = run(&[flag]);
+        assert_ok(&o);
+        assert!(!o.stdout.is_empty(), "{flag}");
+    }
+    // A usage error is still clap's, on stderr, with its status.
+    let o = run(&["no-such-command"]);
+    assert_eq!(o.status.code(), Some(2), "{:?}", o.status);
+    assert!(text(&o.stderr).contains("no-such-command"));
+}
+
+/// Every count option is checked against --memory-limit before its draws
+/// are allocated: 2^32 draws aborted the process ("memory allocation of
+/// 34359738368 bytes failed").
+#[test]
+fn draw_counts_are_checked_against_the_memory_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = dir.path().join("sky.hdr");
+    let img = image::Rgb32FImage::from_pixel(16, 8, image::Rgb([1.0, 0.5, 0.25]));
+    image::DynamicImage::ImageRgb32F(img).save(&map).unwrap();
+    let huge = "4294967296";
+    let cases: [Vec<&str>; 4] = [
+        vec![
+            "env-report",
+            "--env",
+            p(&map),
+            "--sampler",
+            "uniform",
+            "--mc-samples",
+            "64",
+            "--timing-samples",
+            huge,
+            "--timing-passes",
+            "1",
+        ],
+        vec!["report", "--material", "builtin:lambert", "--samples", huge],
+        vec![
+            "report",
+            "--material",
+            "builtin:lambert",
+            "--samples",
+            "0",
+            "--timing-samples",
+            huge,
+        ],
+        vec!["bench", "--samples", huge],
+    ];
+    for args in cases {
+        let o = run(&args);
+        assert_eq!(signal(o.status), None, "{args:?} died of a signal");
+        assert_one_line_error(&o, "memory limit");
+    }
 }

@@ -154,6 +154,27 @@ impl EfficiencyConfig {
     pub fn total_samples(&self) -> usize {
         self.outgoing.len() * self.samples_per_direction
     }
+
+    /// Check the memory the draw counts ask for against the memory limit
+    /// ([`acdf_io::limits`]) before any of it is allocated: the uniform
+    /// pairs of the Monte Carlo estimate (8 bytes a draw, every outgoing
+    /// direction at once) and of a timed repeat (8 bytes, and the draws it
+    /// keeps, 24 bytes, a draw).
+    pub fn check_memory(&self) -> acdf_core::Result<()> {
+        use acdf_io::limits::{bytes_of, check_memory};
+        let directions = self.outgoing.len() as u64;
+        check_memory(
+            "the Monte Carlo draws (--samples per direction)",
+            bytes_of(bytes_of(directions, self.samples_per_direction as u64), 8),
+        )?;
+        check_memory(
+            "the timed draws (--timing-samples per direction)",
+            bytes_of(
+                bytes_of(directions, self.timing_samples_per_direction as u64),
+                8 + 24,
+            ),
+        )
+    }
 }
 
 /// Per-call times, in seconds, of what a sample costs.

@@ -10,8 +10,11 @@
 //! a symbolic link, a folder) is refused before anything is written, and
 //! an existing file keeps its permissions (and, where the process may, its
 //! owner). The temporary file is removed when the write fails and, once
-//! [`install_interrupt_cleanup`] has run, when the process is interrupted
-//! (SIGINT, SIGTERM, SIGHUP); only SIGKILL can leave one behind, named
+//! [`install_interrupt_cleanup`] has run, when the process is ended by a
+//! signal it can catch (SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGABRT, SIGALRM,
+//! SIGUSR1, ...: [`CLEANUP_SIGNALS`]; a write past the file-size limit
+//! fails with an error instead of SIGXFSZ); only SIGKILL can leave one
+//! behind, named
 //! `.NAME.PID.N` + [`TEMP_SUFFIX`] beside the target.
 //!
 //! **Reading.** [`Input`] opens a file and knows its size when it is a
@@ -278,18 +281,39 @@ fn keep_owner_and_mode(file: &File, old: &fs::Metadata) -> io::Result<()> {
     file.set_permissions(old.permissions())
 }
 
+/// The signals whose default action ends the process and that a process
+/// can catch, other than those of a fault in the process itself (SIGSEGV,
+/// SIGBUS, SIGILL, SIGFPE, SIGTRAP, SIGSYS), SIGPIPE (which Rust programs
+/// ignore, seeing an error instead) and SIGXFSZ (see
+/// [`install_interrupt_cleanup`]): on each, the temporary files are removed
+/// before the process dies of it.
+#[cfg(unix)]
+pub const CLEANUP_SIGNALS: [i32; 11] = {
+    use signal_hook::consts::*;
+    [
+        SIGHUP, SIGINT, SIGQUIT, SIGABRT, SIGALRM, SIGTERM, SIGUSR1, SIGUSR2, SIGXCPU, SIGVTALRM,
+        SIGPROF,
+    ]
+};
+
 /// Remove the temporary files of [`write_atomic`] when the process is
-/// interrupted by SIGINT, SIGTERM or SIGHUP, then die of that signal as
-/// if no handler had been installed (so a shell sees the usual status).
-/// For programs: a library should leave its host's signals alone. Calling
-/// it again does nothing.
+/// ended by any of [`CLEANUP_SIGNALS`] (SIGINT, SIGTERM, SIGHUP, SIGQUIT,
+/// ...), then die of that signal as if no handler had been installed (so a
+/// shell sees the usual status). SIGXFSZ, which a write past the file-size
+/// limit raises, is caught and does nothing: the write then fails with an
+/// error ("File too large") that [`write_atomic`] reports after removing
+/// its temporary file, instead of the process dying in the middle of it.
+/// Only SIGKILL (and a fault in the process itself) can leave a temporary
+/// file behind. For programs: a library should leave its host's signals
+/// alone. Calling it again does nothing.
 pub fn install_interrupt_cleanup() -> io::Result<()> {
     static INSTALLED: OnceLock<io::Result<()>> = OnceLock::new();
     let result = INSTALLED.get_or_init(|| {
         #[cfg(unix)]
         {
-            use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
-            let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP])?;
+            let file_too_large = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            signal_hook::flag::register(signal_hook::consts::SIGXFSZ, file_too_large)?;
+            let mut signals = signal_hook::iterator::Signals::new(CLEANUP_SIGNALS)?;
             std::thread::Builder::new()
                 .name("acdf-interrupt".into())
                 .spawn(move || {

@@ -8,7 +8,6 @@ use std::sync::Arc;
 use acdf::core::{Rgb, SphereSampler, Vec2, Vec3, ONE_MINUS_EPSILON};
 use acdf::env_registry::{make_env_sampler, parse_sphere_direction_degrees, EnvSamplerOptions};
 use acdf::lights::EnvMap;
-use acdf::spec::parse_direction_degrees;
 use rand::{Rng, SeedableRng};
 
 /// u at and next to the edges of [0, 1), and the middle.
@@ -98,7 +97,7 @@ fn the_compensated_table_of_a_shared_map() {
         return;
     }
     let m = Arc::new(EnvMap::open(&path).unwrap());
-    let normal = parse_direction_degrees("40,75").unwrap();
+    let normal = parse_sphere_direction_degrees("40,75").unwrap();
     let s = make_env_sampler("uniform-comp", &m, &EnvSamplerOptions::default()).unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(20261121);
     for k in 0..500_000 {
