@@ -275,8 +275,22 @@ fn run_scene(
             );
             let exr = a.out.join(format!("{label}-reference.exr"));
             let key_path = a.out.join(format!("{label}-reference.key"));
-            let cached = std::fs::read_to_string(&key_path).ok().as_deref() == Some(key.as_str());
-            if cached && exr.exists() {
+            // The cache is two files of the output folder; where either is
+            // there but not a regular file (a FIFO, a device, a link to
+            // one, a folder), the cache is neither read nor written.
+            let unusable: Vec<&PathBuf> = [&key_path, &exr]
+                .into_iter()
+                .filter(|p| std::fs::symlink_metadata(p).is_ok() && !is_regular_file(p))
+                .collect();
+            for p in &unusable {
+                eprintln!(
+                    "acdf: note: {} is not a regular file; the reference is rendered and not cached",
+                    p.display()
+                );
+            }
+            let cache = unusable.is_empty();
+            let cached = cache && cached_key_matches(&key_path, &key) && is_regular_file(&exr);
+            if cached {
                 eprintln!("reference: cached {}", exr.display());
                 read_exr(&exr, size)?
             } else {
@@ -298,8 +312,10 @@ fn run_scene(
                     "reference: {} spp of mis-power in {:.1} s",
                     a.ref_spp, r.seconds
                 );
-                write_exr(&exr, &r.last)?;
-                acdf_io::fsio::write_atomic(&key_path, |w| w.write_all(key.as_bytes()))?;
+                if cache {
+                    write_exr(&exr, &r.last)?;
+                    acdf_io::fsio::write_atomic(&key_path, |w| w.write_all(key.as_bytes()))?;
+                }
                 r.last
             }
         }
@@ -713,9 +729,44 @@ fn write_exr(path: &Path, film: &Film) -> Result<()> {
     Ok(acdf_io::fsio::write_atomic(path, |w| w.write_all(&bytes))?)
 }
 
-/// Read a linear RGB image of `size` as a film.
+/// Whether the cached reference's key file holds `key`: read only when it
+/// is a regular file, and no more than the key's length of it.
+fn cached_key_matches(path: &Path, key: &str) -> bool {
+    let bound = key.len() as u64 + 1;
+    acdf_io::fsio::Input::open_regular(path).is_ok_and(|mut input| {
+        input
+            .read_rest(bound, "the size of a reference key")
+            .is_ok_and(|bytes| bytes == key.as_bytes())
+    })
+}
+
+/// Whether `path` is a regular file (after symbolic links).
+fn is_regular_file(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.is_file())
+}
+
+/// Read a linear RGB image of `size` as a film: only from a regular file,
+/// and its size is read from the header and compared before the pixels
+/// are read.
 fn read_exr(path: &Path, size: (usize, usize)) -> Result<Film> {
-    let bytes = acdf_io::fsio::read_bounded(path, u64::MAX, "the memory limit")?;
+    let mut input = acdf_io::fsio::Input::open_regular(path)?;
+    let header = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| image_error(path, e))?;
+    let (w, h) = header.into_dimensions().map_err(|e| image_error(path, e))?;
+    if (w as usize, h as usize) != size {
+        return Err(image_error(
+            path,
+            format!(
+                "the reference is {w}x{h} pixels, the render {}x{}",
+                size.0, size.1
+            ),
+        ));
+    }
+    let bytes = input.read_rest(
+        acdf_io::limits::memory_limit(),
+        "the memory limit (acdf --memory-limit raises it)",
+    )?;
     let img = image::load_from_memory(&bytes)
         .map_err(|e| image_error(path, e))?
         .to_rgb32f();

@@ -862,7 +862,7 @@ fn kill_at_random_points_leaves_the_old_or_the_new_file() {
             std::fs::read(&new_path).unwrap(),
         );
         let keep = [name, "old", "new"];
-        for round in 0..SIGNALS.len() {
+        for (round, sig) in SIGNALS.into_iter().enumerate() {
             std::fs::write(&target, &old).unwrap();
             let before = std::fs::metadata(&target).unwrap().modified().unwrap();
             let mut a = new_args.clone();
@@ -888,7 +888,6 @@ fn kill_at_random_points_leaves_the_old_or_the_new_file() {
                 }
                 std::thread::sleep(Duration::from_secs_f64(rng.random::<f64>() * 0.02));
             }
-            let sig = SIGNALS[round];
             let _ = Command::new("kill")
                 .args([format!("-{sig}"), child.id().to_string()])
                 .status();
@@ -977,4 +976,74 @@ fn draw_counts_are_checked_against_the_memory_limit() {
         assert_eq!(signal(o.status), None, "{args:?} died of a signal");
         assert_one_line_error(&o, "memory limit");
     }
+}
+
+/// `render`'s reference and its cache: a reference of another size is
+/// refused from its header, before its pixels are read (even past the
+/// memory limit); a cache key that is a FIFO (which hung the command) or a
+/// link to an endless device is noted, and the reference is rendered again
+/// and not cached.
+#[test]
+fn render_reads_its_reference_and_cache_with_bounds() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let render = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--material",
+            "builtin:lambert",
+            "--strategies",
+            "brdf",
+            "--width",
+            "8",
+            "--spp",
+            "1",
+            "--ref-spp",
+            "2",
+            "--timing-repeats",
+            "1",
+            "--out",
+            p(&out),
+        ];
+        args.extend(extra);
+        finish(command("", &args).spawn().unwrap(), 120)
+    };
+
+    let big = dir.path().join("big.exr");
+    // Noise, so that the file cannot compress below the memory limit.
+    let img = image::Rgb32FImage::from_fn(1024, 512, |x, y| {
+        let h =
+            (x.wrapping_mul(0x9E37_79B9) ^ y.wrapping_mul(0x85EB_CA6B)).wrapping_mul(0xC2B2_AE35);
+        image::Rgb([h as f32 / u32::MAX as f32, 0.5, 0.25])
+    });
+    image::DynamicImage::ImageRgb32F(img).save(&big).unwrap();
+    assert!(std::fs::metadata(&big).unwrap().len() > 4 << 20);
+    let o = render(&["--reference", p(&big), "--memory-limit", "4M"]);
+    assert_one_line_error(&o, "the reference is 1024x512 pixels");
+
+    assert_ok(&render(&[]));
+    let key = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().ends_with("-reference.key"))
+        .expect("the cached reference's key");
+    std::fs::remove_file(&key).unwrap();
+    assert!(Command::new("mkfifo").arg(&key).status().unwrap().success());
+    let o = render(&[]);
+    assert_ok(&o);
+    assert!(
+        text(&o.stderr).contains("not a regular file"),
+        "{}",
+        text(&o.stderr)
+    );
+
+    std::fs::remove_file(&key).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", &key).unwrap();
+    let o = render(&[]);
+    assert_ok(&o);
+    assert!(
+        text(&o.stderr).contains("not a regular file"),
+        "{}",
+        text(&o.stderr)
+    );
 }

@@ -64,8 +64,9 @@ pub enum FsError {
         source: io::Error,
     },
 
-    /// The path names something that is not a file to read (a folder).
-    #[error("cannot read {}: it is {kind}, not a file", path.display())]
+    /// The path names something that is not a file to read (a folder; for
+    /// [`Input::open_regular`], anything but a regular file).
+    #[error("cannot read {}: it is {kind}, not a regular file", path.display())]
     NotReadable { path: PathBuf, kind: &'static str },
 
     /// The file is larger than the reader accepts (the size its format
@@ -382,6 +383,25 @@ impl Input {
             len: meta.is_file().then_some(meta.len()),
             read: 0,
         })
+    }
+
+    /// Open `path` only if it is a regular file (after symbolic links):
+    /// a folder, FIFO, device or socket is refused from its metadata,
+    /// before it is opened, since opening a FIFO waits for a writer. For
+    /// files a program keeps for itself (caches) and images, which are
+    /// never streams.
+    pub fn open_regular(path: &Path) -> Result<Input, FsError> {
+        let meta = fs::metadata(path).map_err(|source| FsError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        if !meta.is_file() {
+            return Err(FsError::NotReadable {
+                path: path.to_path_buf(),
+                kind: kind_of(&meta.file_type()),
+            });
+        }
+        Input::open(path)
     }
 
     /// The path it was opened with.
