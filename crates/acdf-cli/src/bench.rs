@@ -453,6 +453,13 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
             reason: "must be at least 1".into(),
         });
     }
+    if config.repeats == 0 {
+        return Err(Error::InvalidArgument {
+            what: "repeats",
+            value: "0".into(),
+            reason: "must be at least 1 run per figure".into(),
+        });
+    }
     // Per draw: its uniform pair, and the samples, directions and densities
     // the batch runs write (under 64 bytes in all).
     acdf_io::limits::check_memory(
@@ -467,7 +474,7 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     let u: Vec<Vec2> = (0..config.samples)
         .map(|_| Vec2::new(rng.random(), rng.random()))
         .collect();
-    let repeats = config.repeats.max(1);
+    let repeats = config.repeats;
 
     // (a), (b): one slice, middle outgoing cell, as both distributions.
     let res = effective_resolution(&material, Resolution::ISOTROPIC);

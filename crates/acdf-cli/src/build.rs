@@ -51,10 +51,25 @@ pub fn run(a: Args) -> Result<()> {
     if !is_saveable(&spec) {
         return Err(not_saveable(&spec.to_string()));
     }
+    // The reference is what a target is relative to; without a target it
+    // would be ignored, so it is refused (and checked when given).
+    let target = a.target.target()?;
+    if let Some(r) = &a.target.reference {
+        a.target.reference()?;
+        if target.is_none() {
+            return Err(Error::InvalidArgument {
+                what: "reference",
+                value: r.clone(),
+                reason: "--reference is the sampler a --target-efficiency is relative to; \
+                         give a target, or leave the reference out"
+                    .into(),
+            });
+        }
+    }
     let m = material(&a.material)?;
     let options = a.tables.options()?;
     let started = Instant::now();
-    let s = match a.target.target()? {
+    let s = match target {
         Some(target) => searched(&a, &m, spec, &options, target)?,
         None => {
             let s = make_sampler_spec(spec, &m, &options)?;

@@ -93,14 +93,15 @@ impl TableArgs {
     }
 }
 
-/// A simplifier tolerance from the command line: none, or a non-negative
-/// number.
+/// A simplifier tolerance from the command line: none, or a finite,
+/// non-negative number (an infinite tolerance would keep only the ends of
+/// every curve: a flat table, never what a user means).
 pub fn validate_tolerance(tolerance: Option<f64>) -> Result<()> {
     match tolerance {
-        Some(t) if t.is_nan() || t < 0.0 => Err(Error::InvalidArgument {
+        Some(t) if !(t.is_finite() && t >= 0.0) => Err(Error::InvalidArgument {
             what: "tolerance",
             value: t.to_string(),
-            reason: "must be a non-negative number".into(),
+            reason: "must be a finite, non-negative number".into(),
         }),
         _ => Ok(()),
     }
@@ -301,7 +302,7 @@ pub fn stdout() -> BufWriter<std::io::StdoutLock<'static>> {
 /// and bench outputs reach the file system.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        acdf_io::fsio::ensure_folder(dir)?;
     }
     Ok(acdf_io::fsio::write_atomic(path, |w| w.write_all(bytes))?)
 }

@@ -245,7 +245,7 @@ fn run_scene(
     };
     let camera = Camera::default();
     let size = (a.width, height);
-    std::fs::create_dir_all(&a.out).map_err(|e| Error::io(&a.out, e))?;
+    acdf_io::fsio::ensure_folder(&a.out)?;
     let label = file_stem_safe(&m.label());
     let samplers_of = |s: Strategy| match s {
         Strategy::Brdf => a.brdf_sampler.clone(),

@@ -92,6 +92,9 @@ fn load_average() -> Option<f64> {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    // The output folder first: a path taken by a file fails before the
+    // measurements, not after.
+    acdf_io::fsio::ensure_folder(&a.out)?;
     let reference: SamplerAt = a.reference.parse()?;
     if !(a.target_efficiency.is_finite() && a.target_efficiency > 0.0) {
         return Err(Error::InvalidArgument {

@@ -76,6 +76,9 @@ struct SweepMeasureArgs {
 /// Measure every sampler and every simplifier at every tolerance, then
 /// write the CSV, JSON, SVG and PNG and print the CSV.
 pub fn run(a: Args) -> Result<()> {
+    // The output folder first: a path taken by a file fails before the
+    // measurements, not after.
+    acdf_io::fsio::ensure_folder(&a.out)?;
     let m = material(&a.material)?;
     let unknown = format!(
         "not recognised; the simplifiers are {}",
@@ -89,8 +92,8 @@ pub fn run(a: Args) -> Result<()> {
         .tolerances
         .as_deref()
         .map(|s| {
-            parse_list(s, "tolerance", "not recognised", |t| {
-                t.parse::<f64>().ok().filter(|x| *x >= 0.0)
+            parse_list(s, "tolerance", "not a finite, non-negative number", |t| {
+                t.parse::<f64>().ok().filter(|x| x.is_finite() && *x >= 0.0)
             })
         })
         .transpose()?;

@@ -1047,3 +1047,93 @@ fn render_reads_its_reference_and_cache_with_bounds() {
         text(&o.stderr)
     );
 }
+
+/// The remaining inconsistencies, each decided one way: an output folder
+/// taken by something else says what is there (not "File exists"); an
+/// infinite tolerance is refused by every command, naming the tolerance;
+/// `bench --repeats 0` and `build --reference` without a target are
+/// refused; control characters of a user's string are escaped, so that an
+/// error stays one line.
+#[test]
+fn remaining_inconsistencies_are_decided() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, b"x").unwrap();
+    let fifo = dir.path().join("a-fifo");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let dangling = dir.path().join("dangling");
+    std::os::unix::fs::symlink(dir.path().join("nothing"), &dangling).unwrap();
+    for (out, kind) in [
+        (&file, "a regular file"),
+        (&fifo, "a FIFO"),
+        (&dangling, "a symbolic link to nothing"),
+    ] {
+        let o = run(&[
+            "sweep",
+            "--material",
+            "builtin:lambert",
+            "--simplifiers",
+            "dp",
+            "--tolerances",
+            "1e-3",
+            "--samples",
+            "0",
+            "--timing-repeats",
+            "1",
+            "--out",
+            p(out),
+        ]);
+        assert_one_line_error(
+            &o,
+            &format!("cannot use {} as a folder: it is {kind}", p(out)),
+        );
+    }
+    let o = run(&[
+        "sweep",
+        "--material",
+        "builtin:lambert",
+        "--tolerances",
+        "inf",
+    ]);
+    assert_one_line_error(&o, "invalid tolerance `inf`");
+    let o = run(&[
+        "sample",
+        "--material",
+        "builtin:nickel",
+        "--tolerance",
+        "inf",
+        "--wo",
+        "30,0",
+    ]);
+    assert_one_line_error(&o, "invalid tolerance `inf`");
+    let o = run(&["bench", "--repeats", "0"]);
+    assert_one_line_error(&o, "invalid repeats `0`");
+    let out = dir.path().join("s.acdfs");
+    for reference in ["bogus", "uniform"] {
+        let o = run(&[
+            "build",
+            "--material",
+            "builtin:lambert",
+            "--sampler",
+            "uniform",
+            "--reference",
+            reference,
+            "--out",
+            p(&out),
+        ]);
+        assert_one_line_error(&o, reference);
+        assert!(!out.exists());
+    }
+    let o = run(&[
+        "sample",
+        "--material",
+        "builtin:a\nb\u{1b}[31m",
+        "--wo",
+        "30,0",
+    ]);
+    assert_one_line_error(&o, "builtin:a\\nb\\u{1b}[31m");
+}

@@ -69,6 +69,11 @@ pub enum FsError {
     #[error("cannot read {}: it is {kind}, not a regular file", path.display())]
     NotReadable { path: PathBuf, kind: &'static str },
 
+    /// An output folder's path is taken by something that is not a folder
+    /// (a file, a FIFO, a device, a link to nothing).
+    #[error("cannot use {} as a folder: it is {kind}", path.display())]
+    NotAFolder { path: PathBuf, kind: &'static str },
+
     /// The file is larger than the reader accepts (the size its format
     /// allows, or the memory limit).
     #[error("{}: {}, more than {limit_what} ({})", path.display(), size_text(*size, *limit), limits::format_bytes(*limit))]
@@ -336,6 +341,47 @@ pub fn install_interrupt_cleanup() -> io::Result<()> {
         Ok(()) => Ok(()),
         Err(e) => Err(io::Error::new(e.kind(), e.to_string())),
     }
+}
+
+/// Make sure `dir` is a folder, creating it and its parents where they are
+/// missing; a path taken by anything else (a file, a FIFO, a device, a
+/// symbolic link to nothing) is an error that says what is there, instead
+/// of the system's "File exists".
+pub fn ensure_folder(dir: &Path) -> Result<(), FsError> {
+    if let Ok(link) = fs::symlink_metadata(dir) {
+        return match fs::metadata(dir) {
+            Ok(m) if m.is_dir() => Ok(()),
+            Ok(m) => Err(FsError::NotAFolder {
+                path: dir.to_path_buf(),
+                kind: kind_of(&m.file_type()),
+            }),
+            Err(_) if link.file_type().is_symlink() => Err(FsError::NotAFolder {
+                path: dir.to_path_buf(),
+                kind: "a symbolic link to nothing",
+            }),
+            Err(source) => Err(FsError::Write {
+                path: dir.to_path_buf(),
+                source,
+            }),
+        };
+    }
+    fs::create_dir_all(dir).map_err(|source| {
+        // A parent may be what is in the way.
+        let blocked = dir
+            .ancestors()
+            .skip(1)
+            .find(|a| fs::symlink_metadata(a).is_ok());
+        match blocked.and_then(|a| fs::metadata(a).ok().map(|m| (a, m))) {
+            Some((a, m)) if !m.is_dir() => FsError::NotAFolder {
+                path: a.to_path_buf(),
+                kind: kind_of(&m.file_type()),
+            },
+            _ => FsError::Write {
+                path: dir.to_path_buf(),
+                source,
+            },
+        }
+    })
 }
 
 /// End the process as a Unix tool does when its output pipe is closed:

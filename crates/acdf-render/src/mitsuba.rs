@@ -216,7 +216,7 @@ pub fn exr_bytes(img: &image::Rgb32FImage, name: &Path) -> Result<Vec<u8>> {
 /// `envmap.exr`, each atomically. Returns the scene file's path.
 pub fn export(dir: &Path, scene: &ExportScene) -> Result<PathBuf> {
     let xml = scene_xml(scene)?;
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    acdf_io::fsio::ensure_folder(dir)?;
     let map_path = dir.join("envmap.exr");
     let img = mitsuba_map(scene.map, export_factor(scene.map.size().0));
     let bytes = exr_bytes(&img, &map_path)?;
