@@ -288,6 +288,9 @@ fn decode_error(path: &Path) -> impl Fn(image::ImageError) -> EnvError + '_ {
 /// (`acdf_io::limits`).
 fn read_header(head: &[u8], path: &Path) -> Result<(image::ImageFormat, usize, usize)> {
     let format = image_format(head, path)?;
+    if format == image::ImageFormat::OpenExr {
+        check_exr_windows(head, path)?;
+    }
     let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(head), format)
         .into_dimensions()
         .map_err(decode_error(path))?;
@@ -298,6 +301,59 @@ fn read_header(head: &[u8], path: &Path) -> Result<(image::ImageFormat, usize, u
         acdf_io::limits::bytes_of((w * h) as u64, DECODE_BYTES_PER_TEXEL),
     )?;
     Ok((format, w, h))
+}
+
+/// An OpenEXR header's data and display windows (`box2i` attributes:
+/// x_min, y_min, x_max, y_max as little-endian `i32`) must not be
+/// inverted: a window whose maximum is below its minimum has no pixels, and
+/// a decoder may still make an image of it. The attributes are found by
+/// walking the header's (name, type, size, value) list from byte 8.
+fn check_exr_windows(head: &[u8], path: &Path) -> Result<()> {
+    let invalid = |message: String| EnvError::Decode {
+        path: path.to_path_buf(),
+        message,
+    };
+    let text = |bytes: &[u8], at: usize| -> Option<(Vec<u8>, usize)> {
+        let end = at + bytes.get(at..)?.iter().position(|&b| b == 0)?;
+        Some((bytes[at..end].to_vec(), end + 1))
+    };
+    let mut at = 8;
+    // The attribute list ends with an empty name; a header cut by `head`
+    // (64 KiB) ends the walk without a verdict.
+    while let Some((name, after_name)) = text(head, at) {
+        if name.is_empty() {
+            break;
+        }
+        let Some((kind, after_kind)) = text(head, after_name) else {
+            break;
+        };
+        let Some(size) = head
+            .get(after_kind..after_kind + 4)
+            .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        else {
+            break;
+        };
+        let value = after_kind + 4;
+        let Ok(size) = usize::try_from(size) else {
+            return Err(invalid(format!("attribute of negative size {size}")));
+        };
+        if kind == b"box2i" && size == 16 && (name == b"dataWindow" || name == b"displayWindow") {
+            let Some(v) = head.get(value..value + 16) else {
+                break;
+            };
+            let n =
+                |k: usize| i32::from_le_bytes([v[4 * k], v[4 * k + 1], v[4 * k + 2], v[4 * k + 3]]);
+            let (x0, y0, x1, y1) = (n(0), n(1), n(2), n(3));
+            if x1 < x0 || y1 < y0 {
+                return Err(invalid(format!(
+                    "the {} is inverted (x {x0}..{x1}, y {y0}..{y1}): it holds no pixels",
+                    String::from_utf8_lossy(&name)
+                )));
+            }
+        }
+        at = value.saturating_add(size);
+    }
+    Ok(())
 }
 
 /// Decode a whole image file held in `bytes` to linear RGB texels, with
@@ -356,6 +412,35 @@ impl EnvMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An EXR whose data window was inverted (its maximum below its
+    /// minimum) is refused, naming the window; the file it came from loads.
+    #[test]
+    fn an_inverted_exr_data_window_is_refused() {
+        let img = image::Rgb32FImage::from_pixel(8, 4, image::Rgb([1.0, 0.5, 0.25]));
+        let mut bytes = Vec::new();
+        image::DynamicImage::ImageRgb32F(img)
+            .write_to(
+                &mut std::io::Cursor::new(&mut bytes),
+                image::ImageFormat::OpenExr,
+            )
+            .unwrap();
+        let path = Path::new("sky.exr");
+        assert!(EnvMap::from_file_bytes(&bytes, path).is_ok());
+        let tag = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(tag.len())
+            .position(|w| w == tag)
+            .expect("a data window")
+            + tag.len()
+            + 4;
+        // (0, 0, 7, 3) becomes (7, 0, 0, 3).
+        let mut inverted = bytes.clone();
+        inverted[at..at + 4].copy_from_slice(&7i32.to_le_bytes());
+        inverted[at + 8..at + 12].copy_from_slice(&0i32.to_le_bytes());
+        let err = EnvMap::from_file_bytes(&inverted, path).unwrap_err();
+        assert!(err.to_string().contains("dataWindow is inverted"), "{err}");
+    }
 
     #[test]
     fn sizes_are_checked() {
