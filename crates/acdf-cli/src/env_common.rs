@@ -91,13 +91,7 @@ pub fn load_map(path: &Path, repair: bool) -> Result<Arc<EnvMap>> {
     } else {
         EnvMap::open(path)?
     };
-    if map.is_black() {
-        return Err(Error::InvalidArgument {
-            what: "environment map",
-            value: path.display().to_string(),
-            reason: "every texel is 0: a black environment has no light to sample".into(),
-        });
-    }
+    acdf::env_registry::check_not_black(&map, path)?;
     Ok(Arc::new(map))
 }
 
