@@ -420,6 +420,29 @@ pub fn parse_sphere_direction_degrees(s: &str) -> Result<Vec3> {
     ))
 }
 
+/// Load a lat-long environment map as every acdf command does: read and
+/// checked by [`EnvMap::open`] (the size from the header against the memory
+/// limit, NaN, infinite and negative texels refused), then refused when it
+/// is black everywhere ([`check_not_black`]).
+pub fn load_env_map(path: &std::path::Path) -> Result<Arc<EnvMap>> {
+    let map = EnvMap::open(path)?;
+    check_not_black(&map, path)?;
+    Ok(Arc::new(map))
+}
+
+/// An error for a map that is black everywhere: it has no light, so there
+/// is nothing to sample in proportion to.
+pub fn check_not_black(map: &EnvMap, path: &std::path::Path) -> Result<()> {
+    if map.is_black() {
+        return Err(Error::InvalidArgument {
+            what: "environment map",
+            value: path.display().to_string(),
+            reason: "every texel is 0: a black environment has no light to sample".into(),
+        });
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -474,27 +497,4 @@ mod tests {
             assert!(parse_sphere_direction_degrees(bad).is_err(), "{bad}");
         }
     }
-}
-
-/// Load a lat-long environment map as every acdf command does: read and
-/// checked by [`EnvMap::open`] (the size from the header against the memory
-/// limit, NaN, infinite and negative texels refused), then refused when it
-/// is black everywhere ([`check_not_black`]).
-pub fn load_env_map(path: &std::path::Path) -> Result<Arc<EnvMap>> {
-    let map = EnvMap::open(path)?;
-    check_not_black(&map, path)?;
-    Ok(Arc::new(map))
-}
-
-/// An error for a map that is black everywhere: it has no light, so there
-/// is nothing to sample in proportion to.
-pub fn check_not_black(map: &EnvMap, path: &std::path::Path) -> Result<()> {
-    if map.is_black() {
-        return Err(Error::InvalidArgument {
-            what: "environment map",
-            value: path.display().to_string(),
-            reason: "every texel is 0: a black environment has no light to sample".into(),
-        });
-    }
-    Ok(())
 }
