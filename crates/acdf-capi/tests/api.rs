@@ -175,3 +175,80 @@ fn a_saved_sampler_loads_for_its_material_only() {
         acdf_material_free(m);
     }
 }
+
+/// One sampler drawn from by four threads at once (its tables built on
+/// first use, by whichever thread comes first) gives every thread the
+/// draws one thread alone gets.
+#[test]
+fn threads_share_one_sampler() {
+    struct Shared(*const AcdfSampler);
+    // SAFETY: the header promises that a sampler may be read by any number
+    // of threads at once.
+    unsafe impl Sync for Shared {}
+    unsafe impl Send for Shared {}
+    unsafe {
+        let m = acdf_material_load(c("builtin:nickel").as_ptr());
+        let s = acdf_sampler_new(m, c("adaptive:chi2").as_ptr());
+        let shared = Shared(s);
+        let draws = |s: &Shared, wo: [f32; 3]| -> Vec<([f32; 3], f32)> {
+            (0..2000)
+                .map(|k| {
+                    let u = [
+                        ((k * 37) % 2000) as f32 / 2000.0,
+                        (k as f32 * 0.618_034).fract(),
+                    ];
+                    let (mut wi, mut pdf) = ([0.0f32; 3], 0.0f32);
+                    acdf_sampler_sample(s.0, wo.as_ptr(), u.as_ptr(), wi.as_mut_ptr(), &mut pdf);
+                    (wi, pdf)
+                })
+                .collect()
+        };
+        let wos: Vec<[f32; 3]> = (0..4)
+            .map(|t| {
+                let theta = 0.3 + 0.3 * t as f32;
+                [theta.sin(), 0.0, theta.cos()]
+            })
+            .collect();
+        let together: Vec<Vec<([f32; 3], f32)>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = wos
+                .iter()
+                .map(|&wo| {
+                    let shared = &shared;
+                    scope.spawn(move || draws(shared, wo))
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        for (wo, got) in wos.iter().zip(&together) {
+            assert_eq!(got, &draws(&shared, *wo));
+            assert!(got.iter().filter(|d| d.1 > 0.0).count() > 1500);
+        }
+        acdf_sampler_free(s);
+        acdf_material_free(m);
+    }
+}
+
+/// Files that are not what they are loaded as: a typed message, no handle.
+#[test]
+fn bad_files_are_refused_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let junk = dir.path().join("junk.acdfs");
+    std::fs::write(&junk, b"not a sampler file at all").unwrap();
+    let bsdf = dir.path().join("cut.bsdf");
+    std::fs::write(&bsdf, b"tensor_file").unwrap();
+    let hdr = dir.path().join("cut.hdr");
+    std::fs::write(&hdr, b"#?RADIANCE\n").unwrap();
+    unsafe {
+        let m = acdf_material_load(c("builtin:lambert").as_ptr());
+        assert!(acdf_sampler_load(m, c(junk.to_str().unwrap()).as_ptr()).is_null());
+        assert!(last_error().contains("junk.acdfs"), "{}", last_error());
+        assert!(acdf_sampler_load(m, null()).is_null());
+        assert_eq!(last_error(), "path is NULL");
+        assert!(acdf_material_load(c(bsdf.to_str().unwrap()).as_ptr()).is_null());
+        assert!(last_error().contains("cut.bsdf"), "{}", last_error());
+        assert!(acdf_envmap_load(c(hdr.to_str().unwrap()).as_ptr()).is_null());
+        assert!(last_error().contains("cut.hdr"), "{}", last_error());
+        assert_eq!(last_error().lines().count(), 1);
+        acdf_material_free(m);
+    }
+}

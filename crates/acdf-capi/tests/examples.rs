@@ -2,19 +2,18 @@
 //! `examples/cpp/direct_lighting.cpp`), built with the system's compilers
 //! against the static library and run, their numbers checked against
 //! acdf's own:
-//! - every draw of the C example equals, bit for bit, the draw of the same
-//!   sampler built in Rust for the same wo and u, and the density of each
-//!   drawn direction equals `acdf pdf`'s (the command line, run on them);
-//!   the same for an environment sampler against `acdf env-pdf`;
+//! - every draw of the C example equals, bit for bit, the draw of
+//!   `acdf sample` (and `acdf env-sample`) for the same wo (normal) and the
+//!   same uniform pairs, and `acdf pdf` of the drawn directions is the
+//!   library's density of them;
 //! - the C++ direct-lighting estimates by BRDF sampling, light sampling
 //!   and MIS agree within five standard errors of their difference.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use acdf::env_registry::{make_env_sampler, EnvSamplerOptions};
 use acdf::{load_material, make_sampler, SamplerOptions};
-use acdf_core::{BxdfSampler, SphereSampler, Vec2, Vec3};
+use acdf_core::{BxdfSampler, Vec2, Vec3};
 
 /// The folder of this test's executable: `target/PROFILE/deps`, where
 /// cargo leaves `libacdf_capi.a`.
@@ -104,81 +103,101 @@ fn shared_map(name: &str) -> Option<PathBuf> {
     path.is_file().then_some(path)
 }
 
-#[test]
-fn the_c_example_draws_what_acdf_draws() {
-    let dir = tempfile::tempdir().unwrap();
-    let program = dir.path().join("sample");
+/// The uniform pairs `acdf sample --seed SEED` and `acdf env-sample --seed
+/// SEED` draw with, one "u0,u1" line each, digit for digit.
+fn pairs(seed: u64, n: usize) -> String {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let u = Vec2::new(rng.random(), rng.random());
+            format!("{:e},{:e}\n", u.x, u.y)
+        })
+        .collect()
+}
+
+fn c_example(dir: &Path) -> PathBuf {
+    let program = dir.join("sample");
     compile(
         "cc",
         &["-std=c11", "-O2", "-Wall", "-Werror"],
         &workspace().join("examples/c/sample.c"),
         &program,
     );
-    let spec = "builtin:nickel";
-    let material = load_material(&spec.parse().unwrap(), None).unwrap();
-    for (name, degrees) in [
-        ("adaptive:chi2", "30,45"),
-        ("outgoing:chi2", "60,170"),
-        ("uniform", "0,0"),
-    ] {
-        // wo exactly as `acdf pdf --wo` reads it, passed to C digit for digit.
+    program
+}
+
+/// Every draw of the C example, for the pairs of `acdf sample --seed 7`,
+/// equals `acdf sample`'s bit for bit, for several samplers and materials;
+/// and `acdf pdf` of the drawn directions equals the library's density of
+/// them, and the drawn density to 1e-4 (the samplers' contract).
+#[test]
+fn the_c_example_draws_what_acdf_sample_draws() {
+    let dir = tempfile::tempdir().unwrap();
+    let program = c_example(dir.path());
+    let mut cases = vec![
+        ("builtin:nickel", "adaptive:chi2", "30,45"),
+        ("builtin:nickel", "outgoing:chi2", "60,170"),
+        ("builtin:nickel", "uniform", "0,0"),
+        ("builtin:nickel", "cosine", "85,10"),
+        ("builtin:gray-plastic", "adaptive:dp", "45,300"),
+    ];
+    let rgl = acdf::materials::rgl::shared_dir().map(|d| d.join("ilm_solo_m_68_rgb.bsdf"));
+    let rgl = rgl
+        .filter(|p| p.is_file())
+        .map(|p| p.to_str().unwrap().to_string());
+    match &rgl {
+        Some(path) => {
+            cases.push((path, "rgl", "30,45"));
+            cases.push((path, "adaptive:chi2", "70,20"));
+        }
+        None => acdf::materials::testing::skip_without_data("no RGL material for the C example"),
+    }
+    let n = 400;
+    let input = pairs(7, n);
+    for (spec, name, degrees) in cases {
+        // wo exactly as `acdf sample --wo` reads it, passed to C digit for digit.
         let wo = acdf::spec::parse_direction_degrees(degrees).unwrap();
         let wo_arg = format!("{:e},{:e},{:e}", wo.x, wo.y, wo.z);
-        let out = run(&program, &[spec, name, &wo_arg, "500"], None);
-        let drawn = rows(&out);
-        assert_eq!(drawn.len(), 500);
-        let sampler = make_sampler(name, &material, &SamplerOptions::default()).unwrap();
-        let mut valid = Vec::new();
-        for r in &drawn {
-            let expected = sampler.sample(wo, Vec2::new(r[0], r[1]));
-            match expected {
-                Some(s) => {
-                    assert_eq!(
-                        [r[2], r[3], r[4], r[5]],
-                        [s.wi.x, s.wi.y, s.wi.z, s.pdf],
-                        "{name}: u = ({}, {})",
-                        r[0],
-                        r[1]
-                    );
-                    assert_eq!(r[6], sampler.pdf(wo, s.wi), "{name}");
-                    valid.push(r);
-                }
-                None => assert_eq!(&r[2..], &[0.0; 5], "{name}"),
-            }
-        }
-        assert!(valid.len() > 400, "{name}: {} draws", valid.len());
-        // The command line's densities of the same directions.
+        let from_c = rows(&run(&program, &[spec, name, &wo_arg], Some(&input)));
+        let common = ["--material", spec, "--sampler", name, "--wo", degrees];
+        let mut args = vec!["sample"];
+        args.extend(common);
+        args.extend(["--n", "400", "--seed", "7"]);
+        let cli = run(&acdf_bin(), &args, None);
+        let from_cli = rows(&cli.lines().skip(1).collect::<Vec<_>>().join("\n"));
+        assert_eq!(from_c.len(), n, "{spec} {name}");
+        assert_eq!(from_c, from_cli, "{spec} {name} wo {degrees}");
+        let valid: Vec<&Vec<f32>> = from_c.iter().filter(|r| r[4] == 1.0).collect();
+        assert!(valid.len() > n / 2, "{spec} {name}: {} draws", valid.len());
         let directions: String = valid
             .iter()
-            .map(|r| format!("{},{},{}\n", r[2], r[3], r[4]))
+            .map(|r| format!("{},{},{}\n", r[0], r[1], r[2]))
             .collect();
-        let cli = run(
-            &acdf_bin(),
-            &[
-                "pdf",
-                "--material",
-                spec,
-                "--sampler",
-                name,
-                "--wo",
-                degrees,
-            ],
-            Some(&directions),
-        );
-        let cli: Vec<f32> = cli.lines().map(|l| l.parse().unwrap()).collect();
-        assert_eq!(cli.len(), valid.len());
-        // `acdf pdf` looks the drawn direction up as `acdf_sampler_pdf`
-        // does; the draw's own density agrees with both to 1e-4, the
-        // samplers' contract.
-        for (r, p) in valid.iter().zip(&cli) {
-            assert!((r[6] - p).abs() <= 1e-6 * r[6], "{name}: {} vs {p}", r[6]);
-            assert!((r[5] - p).abs() <= 1e-4 * r[5], "{name}: {} vs {p}", r[5]);
+        let mut args = vec!["pdf"];
+        args.extend(common);
+        let cli = run(&acdf_bin(), &args, Some(&directions));
+        let material = load_material(&spec.parse().unwrap(), None).unwrap();
+        let sampler = make_sampler(name, &material, &SamplerOptions::default()).unwrap();
+        for (r, line) in valid.iter().zip(cli.lines()) {
+            let p: f32 = line.parse().unwrap();
+            assert_eq!(
+                p,
+                sampler.pdf(wo, Vec3::new(r[0], r[1], r[2])),
+                "{spec} {name}"
+            );
+            assert!(
+                (r[3] - p).abs() <= 1e-4 * r[3],
+                "{spec} {name}: {} vs {p}",
+                r[3]
+            );
         }
     }
 }
 
+/// The same for environment samplers against `acdf env-sample`.
 #[test]
-fn the_c_example_draws_environment_directions_as_acdf_does() {
+fn the_c_example_draws_what_acdf_env_sample_draws() {
     let Some(map) = shared_map("rooitou_park_1k.hdr") else {
         acdf::materials::testing::skip_without_data(
             "no ../shared/data/envmaps/rooitou_park_1k.hdr",
@@ -186,32 +205,37 @@ fn the_c_example_draws_environment_directions_as_acdf_does() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let program = dir.path().join("sample");
-    compile(
-        "cc",
-        &["-std=c11", "-O2", "-Wall", "-Werror"],
-        &workspace().join("examples/c/sample.c"),
-        &program,
-    );
-    let env = std::sync::Arc::new(acdf::lights::EnvMap::open(&map).unwrap());
-    let normal = Vec3::new(0.3, -0.4, 0.866_025_4);
+    let program = c_example(dir.path());
+    let normal = acdf::env_registry::parse_sphere_direction_degrees("30,60").unwrap();
     let normal_arg = format!("{:e},{:e},{:e}", normal.x, normal.y, normal.z);
-    for name in ["uniform", "oriented:dp"] {
-        let out = run(
+    let input = pairs(5, 300);
+    let map = map.to_str().unwrap();
+    for name in ["uniform", "uniform-comp", "adaptive:chi2", "oriented:dp"] {
+        let from_c = rows(&run(
             &program,
-            &["--env", map.to_str().unwrap(), name, &normal_arg, "300"],
+            &["--env", map, name, &normal_arg],
+            Some(&input),
+        ));
+        let cli = run(
+            &acdf_bin(),
+            &[
+                "env-sample",
+                "--env",
+                map,
+                "--sampler",
+                name,
+                "--normal",
+                "30,60",
+                "--n",
+                "300",
+                "--seed",
+                "5",
+            ],
             None,
         );
-        let sampler = make_env_sampler(name, &env, &EnvSamplerOptions::default()).unwrap();
-        for r in rows(&out) {
-            match sampler.sample(Some(normal), Vec2::new(r[0], r[1])) {
-                Some(d) => {
-                    assert_eq!([r[2], r[3], r[4], r[5]], [d.dir.x, d.dir.y, d.dir.z, d.pdf]);
-                    assert_eq!(r[6], sampler.pdf(Some(normal), d.dir));
-                }
-                None => assert_eq!(&r[2..], &[0.0; 5]),
-            }
-        }
+        let from_cli = rows(&cli.lines().skip(1).collect::<Vec<_>>().join("\n"));
+        assert_eq!(from_c.len(), 300, "{name}");
+        assert_eq!(from_c, from_cli, "{name}");
     }
 }
 
