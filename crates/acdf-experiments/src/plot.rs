@@ -336,36 +336,89 @@ pub fn figure_svg(figure: &Figure) -> Result<String> {
     Ok(svg)
 }
 
-/// Put images side by side, left to right, with a caption strip above each.
+/// How a tile's caption is set: its font size and lines.
+struct Caption {
+    size: f64,
+    lines: Vec<String>,
+}
+
+/// The caption of a tile `width` pixels wide: the label on one line at the
+/// largest size from 15 down to 9 pixels that fits the tile; where even 9
+/// does not, the label broken after its hyphens and spaces into as few
+/// lines as fit (a single word longer than the tile keeps a line of its
+/// own). So labels
+/// stay inside their tiles, and readable, at 64 pixels.
+fn caption_for(label: &str, width: u32) -> Result<Caption> {
+    let room = width.saturating_sub(4);
+    let fits = |text: &str, size: f64| -> Result<bool> {
+        let (w, _) = (FAMILY, size)
+            .into_font()
+            .box_size(text)
+            .map_err(|e| plot_error(Path::new("side-by-side"), e))?;
+        Ok(w <= room)
+    };
+    for size in (9..=15).rev().map(f64::from) {
+        if fits(label, size)? {
+            return Ok(Caption {
+                size,
+                lines: vec![label.to_string()],
+            });
+        }
+    }
+    let size = 9.0;
+    let mut lines: Vec<String> = Vec::new();
+    for word in label.split_inclusive(['-', ' ']) {
+        match lines.last_mut() {
+            Some(line) if fits(&format!("{line}{word}"), size)? => line.push_str(word),
+            _ => lines.push(word.to_string()),
+        }
+    }
+    Ok(Caption { size, lines })
+}
+
+/// The images side by side with their labels above them, on white: the
+/// figure of a render's strategies (see [`caption_for`] for the labels).
 pub fn side_by_side(images: &[(String, image::RgbImage)]) -> Result<image::RgbImage> {
     ensure_font()?;
-    const CAPTION: u32 = 22;
     const GAP: u32 = 4;
+    let captions = images
+        .iter()
+        .map(|(label, img)| caption_for(label, img.width()))
+        .collect::<Result<Vec<_>>>()?;
+    let line_height = |c: &Caption| c.size.ceil() as u32 + 3;
+    let caption_height = captions
+        .iter()
+        .map(|c| 4 + c.lines.len() as u32 * line_height(c))
+        .max()
+        .unwrap_or(0)
+        .max(22);
     let width: u32 = images
         .iter()
         .map(|(_, i)| i.width() + GAP)
         .sum::<u32>()
         .saturating_sub(GAP);
-    let height = images.iter().map(|(_, i)| i.height()).max().unwrap_or(0) + CAPTION;
+    let height = images.iter().map(|(_, i)| i.height()).max().unwrap_or(0) + caption_height;
     let mut out =
         image::RgbImage::from_pixel(width.max(1), height.max(1), image::Rgb([255, 255, 255]));
     let mut x = 0u32;
-    let mut captions = Vec::new();
-    for (label, img) in images {
-        image::imageops::replace(&mut out, img, x as i64, CAPTION as i64);
-        captions.push((label.clone(), x));
+    let mut origins = Vec::new();
+    for (_, img) in images {
+        image::imageops::replace(&mut out, img, x as i64, caption_height as i64);
+        origins.push(x);
         x += img.width() + GAP;
     }
     let (w, h) = out.dimensions();
     {
         let root = BitMapBackend::with_buffer(&mut out, (w, h)).into_drawing_area();
-        for (label, x) in captions {
-            root.draw(&Text::new(
-                label,
-                (x as i32 + 4, 3),
-                (FAMILY, 15).into_font().color(&BLACK),
-            ))
-            .map_err(|e| plot_error(Path::new("side-by-side"), e))?;
+        for (caption, x) in captions.iter().zip(origins) {
+            for (k, line) in caption.lines.iter().enumerate() {
+                root.draw(&Text::new(
+                    line.clone(),
+                    (x as i32 + 2, 3 + (k as u32 * line_height(caption)) as i32),
+                    (FAMILY, caption.size).into_font().color(&BLACK),
+                ))
+                .map_err(|e| plot_error(Path::new("side-by-side"), e))?;
+            }
         }
         root.present()
             .map_err(|e| plot_error(Path::new("side-by-side"), e))?;
@@ -376,6 +429,47 @@ pub fn side_by_side(images: &[(String, image::RgbImage)]) -> Result<image::RgbIm
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// At 64 pixels a tile's label stays over its tile: the gaps between
+    /// tiles stay white, and the longest label is broken into lines.
+    #[test]
+    fn side_by_side_labels_stay_over_their_tiles() {
+        let tile = image::RgbImage::from_pixel(64, 48, image::Rgb([40, 40, 40]));
+        let labels = [
+            "reference",
+            "mis-one-sample-adaptive",
+            "white: error 0.1134",
+            "4 spp 0.0722",
+        ];
+        let images: Vec<(String, image::RgbImage)> = labels
+            .iter()
+            .map(|l| (l.to_string(), tile.clone()))
+            .collect();
+        let out = side_by_side(&images).unwrap();
+        let caption_height = out.height() - 48;
+        assert!(caption_height >= 22);
+        assert_eq!(out.width(), 4 * 64 + 3 * 4);
+        for k in 0..3u32 {
+            let gap = k * 68 + 64..k * 68 + 68;
+            for x in gap {
+                for y in 0..out.height() {
+                    let p = out.get_pixel(x, y).0;
+                    assert!(p.iter().all(|&c| c > 200), "gap pixel ({x}, {y}) is {p:?}");
+                }
+            }
+        }
+        // Text was drawn over every tile's caption strip.
+        for k in 0..4u32 {
+            let dark = (k * 68..k * 68 + 64)
+                .flat_map(|x| (0..caption_height).map(move |y| (x, y)))
+                .filter(|&(x, y)| out.get_pixel(x, y).0[0] < 128)
+                .count();
+            assert!(dark > 20, "tile {k}: {dark} dark caption pixels");
+        }
+        let long = caption_for("mis-one-sample-adaptive", 64).unwrap();
+        assert!(long.lines.len() >= 2, "{:?}", long.lines);
+        assert_eq!(caption_for("brdf", 64).unwrap().size, 15.0);
+    }
 
     #[test]
     fn figures_draw_to_svg_and_png() {
