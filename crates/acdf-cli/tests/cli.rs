@@ -133,19 +133,13 @@ fn cosine_rows_have_the_cosine_density() {
 
 /// `pdf` reads `sample`'s own output and gives back the densities it drew
 /// with: sampling and density evaluation agree through the command line.
-#[test]
-fn pdf_of_sampled_directions_matches_the_sampled_pdf() {
-    let args = [
-        "--material",
-        "builtin:gray-plastic",
-        "--sampler",
-        "uniform",
-        "--wo",
-        "40,10",
-    ];
+/// `acdf sample --n N --seed SEED` with `args`, then `acdf pdf` with the
+/// same `args` on its output: each drawn row (wi, pdf, valid) with the
+/// density `pdf` gives its direction.
+fn sample_then_pdf(args: &[&str], n: &str, seed: &str) -> Vec<(Vec<f64>, f64)> {
     let mut sample_args = vec!["sample"];
     sample_args.extend(args);
-    sample_args.extend(["--n", "100"]);
+    sample_args.extend(["--n", n, "--seed", seed]);
     let s = acdf(&sample_args);
     assert_ok(&s);
     let csv = stdout(&s);
@@ -156,14 +150,27 @@ fn pdf_of_sampled_directions_matches_the_sampled_pdf() {
     let pdfs: Vec<f64> = stdout(&p).lines().map(|l| l.parse().unwrap()).collect();
     let rows: Vec<Vec<f64>> = csv.lines().skip(1).map(parse_floats).collect();
     assert_eq!(pdfs.len(), rows.len());
-    for (row, pdf) in rows.iter().zip(&pdfs) {
+    rows.into_iter().zip(pdfs).collect()
+}
+
+#[test]
+fn pdf_of_sampled_directions_matches_the_sampled_pdf() {
+    let args = [
+        "--material",
+        "builtin:gray-plastic",
+        "--sampler",
+        "uniform",
+        "--wo",
+        "40,10",
+    ];
+    for (row, pdf) in sample_then_pdf(&args, "100", "1") {
         if row[4] == 1.0 {
             assert!(
                 (row[3] - pdf).abs() <= 1e-3 * row[3].max(1.0),
                 "{row:?} vs {pdf}"
             );
         } else {
-            assert_eq!(*pdf, 0.0);
+            assert_eq!(pdf, 0.0);
         }
     }
 }
@@ -182,28 +189,14 @@ fn pdf_of_grazing_draws_matches_the_sampled_pdf() {
         ("builtin:near-mirror", "uniform", "89.999,45"),
     ] {
         let args = ["--material", material, "--sampler", sampler, "--wo", wo];
-        let mut sample_args = vec!["sample"];
-        sample_args.extend(args);
-        sample_args.extend(["--n", "3000", "--seed", "11"]);
-        let s = acdf(&sample_args);
-        assert_ok(&s);
-        let csv = stdout(&s);
-        let mut pdf_args = vec!["pdf"];
-        pdf_args.extend(args);
-        let p = acdf_stdin(&pdf_args, &csv);
-        assert_ok(&p);
-        let pdfs: Vec<f64> = stdout(&p).lines().map(|l| l.parse().unwrap()).collect();
-        let rows: Vec<Vec<f64>> = csv.lines().skip(1).map(parse_floats).collect();
-        assert_eq!(pdfs.len(), rows.len());
+        let drawn = sample_then_pdf(&args, "3000", "11");
         let mut valid = 0;
-        for (row, pdf) in rows.iter().zip(&pdfs) {
-            if row[4] == 1.0 {
-                valid += 1;
-                assert!(
-                    (row[3] - pdf).abs() <= 1e-4 * row[3],
-                    "{material} {sampler} wo {wo}: drawn {row:?}, pdf {pdf}"
-                );
-            }
+        for (row, pdf) in drawn.iter().filter(|(row, _)| row[4] == 1.0) {
+            valid += 1;
+            assert!(
+                (row[3] - pdf).abs() <= 1e-4 * row[3],
+                "{material} {sampler} wo {wo}: drawn {row:?}, pdf {pdf}"
+            );
         }
         assert!(valid > 1000, "{material} {sampler} wo {wo}: {valid} draws");
     }
@@ -937,18 +930,23 @@ fn render_equal_time_runs_at_least_one_pass() {
     }
 }
 
-#[test]
-fn render_rejects_a_missing_envmap() {
-    let dir = tempfile::tempdir().unwrap();
-    let o = acdf(&[
+/// `acdf render` of the built-in Lambertian under `map`, into `out`.
+fn render_with_envmap(map: &Path, out: &Path) -> Output {
+    acdf(&[
         "render",
         "--material",
         "builtin:lambert",
         "--envmap",
-        "/nonexistent/sky.exr",
+        map.to_str().unwrap(),
         "--out",
-        dir.path().to_str().unwrap(),
-    ]);
+        out.to_str().unwrap(),
+    ])
+}
+
+#[test]
+fn render_rejects_a_missing_envmap() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = render_with_envmap(Path::new("/nonexistent/sky.exr"), dir.path());
     assert_one_line_error(&o, "/nonexistent/sky.exr");
 }
 
@@ -960,16 +958,7 @@ fn render_rejects_a_black_envmap() {
     let map = dir.path().join("black.hdr");
     let img = image::Rgb32FImage::from_pixel(16, 8, image::Rgb([0.0, 0.0, 0.0]));
     image::DynamicImage::ImageRgb32F(img).save(&map).unwrap();
-    let o = acdf(&[
-        "render",
-        "--material",
-        "builtin:lambert",
-        "--envmap",
-        map.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert_one_line_error(&o, "every texel is 0");
+    assert_one_line_error(&render_with_envmap(&map, dir.path()), "every texel is 0");
 }
 
 /// A white latitude-longitude map written as Radiance `.hdr` makes a
@@ -1019,16 +1008,7 @@ fn render_reads_an_hdr_envmap_and_a_reference() {
     assert_one_line_error(&acdf(&with_ref), "the reference is 16x16");
     let bad = dir.path().join("bad.exr");
     std::fs::write(&bad, b"not an exr").unwrap();
-    let o = acdf(&[
-        "render",
-        "--material",
-        "builtin:lambert",
-        "--envmap",
-        bad.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert_one_line_error(&o, "bad.exr");
+    assert_one_line_error(&render_with_envmap(&bad, dir.path()), "bad.exr");
 }
 
 /// `--export-mitsuba` writes the scene and the resampled map; a material

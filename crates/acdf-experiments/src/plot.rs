@@ -377,7 +377,9 @@ fn caption_for(label: &str, width: u32) -> Result<Caption> {
 }
 
 /// The images side by side with their labels above them, on white: the
-/// figure of a render's strategies (see [`caption_for`] for the labels).
+/// figure of a render's strategies. Each label is set at the largest size
+/// from 15 down to 9 pixels that fits its tile, and broken into lines where
+/// none does, so that labels stay inside their tiles at 64 pixels.
 pub fn side_by_side(images: &[(String, image::RgbImage)]) -> Result<image::RgbImage> {
     ensure_font()?;
     const GAP: u32 = 4;
