@@ -50,18 +50,10 @@ thread_local! {
     static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
 }
 
-/// Keep `message` (on one line, without NUL bytes) as the thread's last
-/// failure.
+/// Keep `message`, on one line ([`acdf::error::one_line`], which also
+/// escapes NUL bytes), as the thread's last failure.
 fn set_error(message: &str) {
-    let line: String = message
-        .chars()
-        .map(|c| match c {
-            '\0' => "\\0".to_string(),
-            c if c.is_control() => c.escape_default().to_string(),
-            c => c.to_string(),
-        })
-        .collect();
-    let text = CString::new(line).unwrap_or_default();
+    let text = CString::new(acdf::error::one_line(message)).unwrap_or_default();
     LAST_ERROR.with(|e| *e.borrow_mut() = text);
 }
 

@@ -195,27 +195,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(Error::Stream(e)) => exit_on_output_error(&e),
         Err(e) => {
-            eprintln!("acdf: error: {}", one_line(&e.to_string()));
+            eprintln!("acdf: error: {}", acdf::error::one_line(&e.to_string()));
             ExitCode::FAILURE
         }
     }
-}
-
-/// `message` on one line: control characters (newlines, escapes, ...),
-/// which a file name or an argument can carry into a message, are written
-/// as escapes (`\n`, `\u{1b}`), so that every error is one line on stderr
-/// and no byte of the user's reaches the terminal as a control sequence.
-fn one_line(message: &str) -> String {
-    message
-        .chars()
-        .map(|c| {
-            if c.is_control() {
-                c.escape_default().to_string()
-            } else {
-                c.to_string()
-            }
-        })
-        .collect()
 }
 
 /// What a command line that does not run a subcommand ends with: the help

@@ -750,10 +750,13 @@ fn is_regular_file(path: &Path) -> bool {
 /// are read.
 fn read_exr(path: &Path, size: (usize, usize)) -> Result<Film> {
     let mut input = acdf_io::fsio::Input::open_regular(path)?;
-    let header = image::ImageReader::open(path)
-        .and_then(|r| r.with_guessed_format())
+    // The first 64 KiB hold any image header this reads.
+    let mut bytes = input.read_up_to(1 << 16)?;
+    let (w, h) = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| image_error(path, e))?
+        .into_dimensions()
         .map_err(|e| image_error(path, e))?;
-    let (w, h) = header.into_dimensions().map_err(|e| image_error(path, e))?;
     if (w as usize, h as usize) != size {
         return Err(image_error(
             path,
@@ -763,23 +766,14 @@ fn read_exr(path: &Path, size: (usize, usize)) -> Result<Film> {
             ),
         ));
     }
-    let bytes = input.read_rest(
-        acdf_io::limits::memory_limit(),
+    let rest = input.read_rest(
+        acdf_io::limits::memory_limit().saturating_sub(bytes.len() as u64),
         "the memory limit (acdf --memory-limit raises it)",
     )?;
+    bytes.extend_from_slice(&rest);
     let img = image::load_from_memory(&bytes)
         .map_err(|e| image_error(path, e))?
         .to_rgb32f();
-    let got = (img.width() as usize, img.height() as usize);
-    if got != size {
-        return Err(image_error(
-            path,
-            format!(
-                "the reference is {}x{} pixels, the render {}x{}",
-                got.0, got.1, size.0, size.1
-            ),
-        ));
-    }
     let radiance: Vec<Vec3> = img.pixels().map(|p| Vec3::from(p.0)).collect();
     if radiance
         .iter()

@@ -411,15 +411,35 @@ impl Input {
     /// Open `path` (following links). A folder is an error; a device or a
     /// pipe opens, with no known size.
     pub fn open(path: &Path) -> Result<Input, FsError> {
+        Input::open_unless(path, |meta| meta.is_dir().then_some("a folder"))
+    }
+
+    /// Open `path` only if it is a regular file (after symbolic links):
+    /// a folder, FIFO, device or socket is refused from its metadata,
+    /// before it is opened, since opening a FIFO waits for a writer. For
+    /// files a program keeps for itself (caches) and images, which are
+    /// never streams.
+    pub fn open_regular(path: &Path) -> Result<Input, FsError> {
+        Input::open_unless(path, |meta| {
+            (!meta.is_file()).then(|| kind_of(&meta.file_type()))
+        })
+    }
+
+    /// Open `path` unless `refuse` names, from its metadata, what it is
+    /// and why that is not read.
+    fn open_unless(
+        path: &Path,
+        refuse: impl FnOnce(&fs::Metadata) -> Option<&'static str>,
+    ) -> Result<Input, FsError> {
         let read_error = |source| FsError::Read {
             path: path.to_path_buf(),
             source,
         };
         let meta = fs::metadata(path).map_err(read_error)?;
-        if meta.is_dir() {
+        if let Some(kind) = refuse(&meta) {
             return Err(FsError::NotReadable {
                 path: path.to_path_buf(),
-                kind: "a folder",
+                kind,
             });
         }
         let file = File::open(path).map_err(read_error)?;
@@ -429,25 +449,6 @@ impl Input {
             len: meta.is_file().then_some(meta.len()),
             read: 0,
         })
-    }
-
-    /// Open `path` only if it is a regular file (after symbolic links):
-    /// a folder, FIFO, device or socket is refused from its metadata,
-    /// before it is opened, since opening a FIFO waits for a writer. For
-    /// files a program keeps for itself (caches) and images, which are
-    /// never streams.
-    pub fn open_regular(path: &Path) -> Result<Input, FsError> {
-        let meta = fs::metadata(path).map_err(|source| FsError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        if !meta.is_file() {
-            return Err(FsError::NotReadable {
-                path: path.to_path_buf(),
-                kind: kind_of(&meta.file_type()),
-            });
-        }
-        Input::open(path)
     }
 
     /// The path it was opened with.

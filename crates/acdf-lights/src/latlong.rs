@@ -201,10 +201,7 @@ impl LatLong {
     /// ([`texel_of`](Self::texel_of)) to find the same texel.
     #[inline(always)]
     pub fn direction_of_point(&self, p: Vec2) -> (Vec3, usize, usize, bool) {
-        let (x, y) = (p.x * self.wf, p.y * self.hf);
-        let column = grid_cell(x, self.last_col);
-        let row = grid_cell(y, self.last_row);
-        let fraction = Vec2::new(x - column as f32, y - row as f32);
+        let (column, row, fraction) = self.cell_of_point(p);
         let m = self.margin;
         let inside = (fraction.x >= m.x)
             & (fraction.x <= 1.0 - m.x)
@@ -219,17 +216,24 @@ impl LatLong {
         )
     }
 
+    /// The texel (column, row) of a point `p` of the unit square and the
+    /// point's position inside it, as fractions of the texel (unclamped).
+    #[inline(always)]
+    fn cell_of_point(&self, p: Vec2) -> (usize, usize, Vec2) {
+        let (x, y) = (p.x * self.wf, p.y * self.hf);
+        let column = grid_cell(x, self.last_col);
+        let row = grid_cell(y, self.last_row);
+        (column, row, Vec2::new(x - column as f32, y - row as f32))
+    }
+
     /// The direction of `p` moved, if need be, inside its texel by the
     /// margin, so that a round trip through it finds the texel of `p`: for
     /// the rare draw within rounding of its texel's edge whose direction
     /// would land in a neighbour (see `finish_draw`).
     pub fn direction_of_point_inside(&self, p: Vec2) -> Vec3 {
-        let (x, y) = (p.x * self.wf, p.y * self.hf);
-        let column = grid_cell(x, self.last_col);
-        let row = grid_cell(y, self.last_row);
+        let (column, row, fraction) = self.cell_of_point(p);
         let m = self.margin;
-        let fraction = Vec2::new(x - column as f32, y - row as f32).clamp(m, Vec2::ONE - m);
-        self.direction_in_texel(column, row, fraction)
+        self.direction_in_texel(column, row, fraction.clamp(m, Vec2::ONE - m))
     }
 
     /// The unit direction at the centre of texel (column, row) in solid

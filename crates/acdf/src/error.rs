@@ -134,5 +134,23 @@ impl Error {
     }
 }
 
+/// `message` on one line: control characters (newlines, escapes, ...),
+/// which a file name or an argument can carry into a message, are written
+/// as escapes (`\n`, `\u{1b}`), so that every error is one line (on the
+/// command's stderr, or from the C interface's `acdf_last_error`) and no
+/// byte of the user's reaches a terminal as a control sequence.
+pub fn one_line(message: &str) -> String {
+    message
+        .chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
 /// `Result` with the facade's [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
