@@ -33,16 +33,16 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod brdf;
-pub mod cpu;
 pub mod distribution;
 pub mod error;
-pub mod fast;
 pub mod geometry;
 pub mod light;
 pub mod quadrature;
 pub mod sampler;
-pub mod search;
+pub mod simd;
 pub mod warp;
+
+pub use simd::{cpu, fast, search};
 
 pub use brdf::{fingerprint_by_eval, luminance, Brdf, Fingerprinter, Rgb, LUMINANCE_WEIGHTS};
 pub use distribution::{
