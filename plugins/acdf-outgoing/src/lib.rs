@@ -1018,107 +1018,6 @@ impl OutgoingSampler {
         };
         acdf_tabulated::mix_with_cosine(a, table, wi)
     }
-
-    /// [`sample_one`](Self::sample_one) for CPUs without AVX2, out of line
-    /// so that `sample` itself stays a feature test and a call, which the
-    /// caller inlines.
-    #[inline(never)]
-    fn sample_portable(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        self.sample_one(None, wo, u)
-    }
-
-    /// [`pdf_one`](Self::pdf_one) for CPUs without AVX2, out of line (see
-    /// [`sample_portable`](Self::sample_portable)).
-    #[inline(never)]
-    fn pdf_portable(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.pdf_one(None, wo, wi)
-    }
-
-    /// [`sample_one`](Self::sample_one) compiled for AVX2 (the same IEEE
-    /// operations; the blend's count runs as masks of eight compares).
-    ///
-    /// wo and u arrive as five `f32` in registers, as in
-    /// `acdf_tabulated`'s samplers: passed as `Vec3` and `Vec2` they go
-    /// through memory, and a load that spans two of the caller's stores
-    /// waits for them to retire at the head of the call's chain.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn sample_avx2(
-        &self,
-        cpu: acdf_core::cpu::Avx2,
-        wo_x: f32,
-        wo_y: f32,
-        wo_z: f32,
-        u_x: f32,
-        u_y: f32,
-    ) -> Option<BxdfSample> {
-        self.sample_one(Some(cpu), Vec3::new(wo_x, wo_y, wo_z), Vec2::new(u_x, u_y))
-    }
-
-    /// [`pdf_one`](Self::pdf_one) compiled for AVX2, wo and wi in
-    /// registers (see [`sample_avx2`](Self::sample_avx2)).
-    // The six coordinates travel in registers, beside the token.
-    #[allow(clippy::too_many_arguments)]
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn pdf_avx2(
-        &self,
-        cpu: acdf_core::cpu::Avx2,
-        wo_x: f32,
-        wo_y: f32,
-        wo_z: f32,
-        wi_x: f32,
-        wi_y: f32,
-        wi_z: f32,
-    ) -> f32 {
-        self.pdf_one(
-            Some(cpu),
-            Vec3::new(wo_x, wo_y, wo_z),
-            Vec3::new(wi_x, wi_y, wi_z),
-        )
-    }
-
-    /// [`sample_batch_one`](Self::sample_batch_one) compiled for AVX2
-    /// (the lane loops of a chunk in 8-wide vectors), with the token that
-    /// lets its searches run in lanes.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn sample_batch_avx2(
-        &self,
-        cpu: acdf_core::cpu::Avx2,
-        wo: Vec3,
-        u: &[Vec2],
-        out: &mut [Option<BxdfSample>],
-    ) {
-        self.sample_batch_one(Some(cpu), wo, u, out)
-    }
-
-    /// [`pdf_batch_one`](Self::pdf_batch_one) compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn pdf_batch_avx2(&self, cpu: acdf_core::cpu::Avx2, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
-        self.pdf_batch_one(Some(cpu), wo, wi, out)
-    }
-
-    /// [`sample_each_one`](Self::sample_each_one) compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn sample_each_avx2(
-        &self,
-        cpu: acdf_core::cpu::Avx2,
-        wo: &[Vec3],
-        u: &[Vec2],
-        out: &mut [Option<BxdfSample>],
-    ) {
-        self.sample_each_one(Some(cpu), wo, u, out)
-    }
-
-    /// [`pdf_each_one`](Self::pdf_each_one) compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn pdf_each_avx2(&self, cpu: acdf_core::cpu::Avx2, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
-        self.pdf_each_one(Some(cpu), wo, wi, out)
-    }
 }
 
 impl BxdfSampler for OutgoingSampler {
@@ -1130,66 +1029,35 @@ impl BxdfSampler for OutgoingSampler {
     /// slice picked by the blend weights; the density is `pdf` of the
     /// returned wi (from the drawn cells where they certainly agree).
     fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-            // requirement of the function's target features.
-            return unsafe { self.sample_avx2(cpu, wo.x, wo.y, wo.z, u.x, u.y) };
-        }
-        self.sample_portable(wo, u)
+        acdf_core::dispatch!(|simd| self.sample_one(simd, wo, u))
     }
 
     /// (1 - a) times the blended table density plus a cos θ_i / π; 0 for an
     /// invalid wo, a non-finite wi or one at or below the horizon.
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: as for `sample`.
-            return unsafe { self.pdf_avx2(cpu, wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
-        }
-        self.pdf_portable(wo, wi)
+        acdf_core::dispatch!(|simd| self.pdf_one(simd, wo, wi))
     }
 
     /// `sample` for every u, with the blend and rotation of wo found once.
     fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: as for `sample`.
-            return unsafe { self.sample_batch_avx2(cpu, wo, u, out) };
-        }
-        self.sample_batch_one(None, wo, u, out)
+        acdf_core::dispatch!(|simd| self.sample_batch_one(simd, wo, u, out))
     }
 
     /// `pdf` for every wi, with the blend and rotation of wo found once.
     fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: as for `sample`.
-            return unsafe { self.pdf_batch_avx2(cpu, wo, wi, out) };
-        }
-        self.pdf_batch_one(None, wo, wi, out)
+        acdf_core::dispatch!(|simd| self.pdf_batch_one(simd, wo, wi, out))
     }
 
     /// `sample` for every pair, a chunk of 64 at a time as
     /// [`sample_batch`](Self::sample_batch) does, with the blend and
     /// rotation of each wo.
     fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: as for `sample`.
-            return unsafe { self.sample_each_avx2(cpu, wo, u, out) };
-        }
-        self.sample_each_one(None, wo, u, out)
+        acdf_core::dispatch!(|simd| self.sample_each_one(simd, wo, u, out))
     }
 
     /// `pdf` for every pair, as [`sample_each`](Self::sample_each).
     fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: as for `sample`.
-            return unsafe { self.pdf_each_avx2(cpu, wo, wi, out) };
-        }
-        self.pdf_each_one(None, wo, wi, out)
+        acdf_core::dispatch!(|simd| self.pdf_each_one(simd, wo, wi, out))
     }
 
     /// The breakpoints (4 bytes each) and every slice's stored arrays.

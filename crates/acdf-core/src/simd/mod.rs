@@ -3,9 +3,9 @@
 //!
 //! - [`cpu`] detects the features once and hands out the [`Avx2`] token
 //!   that proves them;
-//! - [`dispatch`] is the one way the rest of acdf runs code compiled for
-//!   AVX2 and FMA: a caller passes its plain code as a closure that takes
-//!   `Option<Avx2>`, and gets it compiled twice, once for the target's
+//! - [`dispatch!`](crate::dispatch!) is the one way the rest of acdf runs
+//!   code compiled for AVX2 and FMA: a caller passes its plain code as a
+//!   closure that takes `Option<Avx2>`, and gets it compiled twice, once for the target's
 //!   baseline (called with `None`) and once with AVX2 and FMA enabled
 //!   (called with the token, where the CPU has them);
 //! - [`search`], [`fast`] and the kernels below them are the vector forms of
@@ -23,28 +23,43 @@ pub mod search;
 
 pub use cpu::Avx2;
 
-/// Runs `kernel`, compiled with AVX2 and FMA enabled and given the token,
-/// when the CPU has them and the portable path is not forced; otherwise
-/// compiled for the target's baseline and given `None`.
+/// Runs an expression compiled with AVX2 and FMA enabled, when the CPU has
+/// them and the portable path is not forced, and compiled for the target's
+/// baseline otherwise: `dispatch!(|cpu| body)`, where `cpu` is an
+/// `Option<Avx2>`, the token in the first case and `None` in the second.
 ///
-/// The closure is inlined into one of two instances, so the code it calls
-/// with `#[inline(always)]` (the plain arithmetic of a draw, and the vector
-/// kernels it picks when handed the token) is compiled for the features
-/// of the instance it runs in. Both instances compute the same results;
-/// the choice only decides the speed.
+/// This is the one way acdf chooses code by CPU. The body is inlined into
+/// one of two instances, so the code it calls with `#[inline(always)]`
+/// (the plain arithmetic of a draw, and the vector kernels it picks when
+/// handed the token) is compiled for the features of the instance it runs
+/// in. Both instances compute the same results; the choice only decides
+/// the speed. (The macro marks the closure `#[inline(always)]`: a closure
+/// left out of line would be compiled for the baseline, its vector kernels
+/// with it, whichever instance called it.)
 ///
 /// # Examples
 ///
 /// ```
-/// use acdf_core::simd::dispatch;
-///
-/// let sum = dispatch(|cpu| {
+/// let sum = acdf_core::dispatch!(|cpu| {
 ///     // `cpu` is `Some` where AVX2 code may run; plain code runs either way.
 ///     let _ = cpu;
 ///     (1..=4).map(|k| k as f32).sum::<f32>()
 /// });
 /// assert_eq!(sum, 10.0);
 /// ```
+#[macro_export]
+macro_rules! dispatch {
+    (|$cpu:ident| $body:expr) => {
+        $crate::simd::dispatch(
+            #[inline(always)]
+            |$cpu: ::core::option::Option<$crate::simd::Avx2>| $body,
+        )
+    };
+}
+
+/// The function behind [`dispatch!`](crate::dispatch!), which calls it with
+/// an `#[inline(always)]` closure; call the macro, not this.
+#[doc(hidden)]
 #[inline(always)]
 pub fn dispatch<R>(kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
     #[cfg(target_arch = "x86_64")]
