@@ -69,16 +69,16 @@ pub fn dispatch<R>(kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
     portable(kernel)
 }
 
-/// `kernel(Some(cpu))` compiled for AVX2 and FMA.
+/// `kernel(Some(cpu))` compiled for AVX2, FMA and POPCNT.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn with_avx2<R>(cpu: Avx2, kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2,fma,popcnt")]
     fn compiled<R>(cpu: Avx2, kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
         kernel(Some(cpu))
     }
     // SAFETY: the token proves the CPU has AVX2 and FMA, the features
-    // `compiled` is built for.
+    // `compiled` is built for (detection requires POPCNT beside them).
     unsafe { compiled(cpu, kernel) }
 }
 
