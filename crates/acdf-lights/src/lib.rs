@@ -51,6 +51,7 @@
 //! ```
 
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+#![forbid(unsafe_code)]
 
 pub mod envmap;
 pub mod error;

@@ -21,6 +21,7 @@
 //! mixture's density then needs one lookup in the table that was not
 //! drawn from).
 
+use acdf_core::simd::Avx2;
 use std::sync::{Arc, OnceLock};
 
 use acdf_core::{
@@ -631,22 +632,11 @@ impl<B: TableBuilder> SphereSampler for OrientedSampler<B> {
     /// rescaled), and the density is the mixture's, of which the drawn
     /// component's part comes with the draw.
     fn sample(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-            // requirement of the function's target features.
-            return unsafe { self.sample_avx2(cpu, normal, u) };
-        }
-        self.sample_portable(normal, u)
+        acdf_core::dispatch!(Self::sample_one, self, normal, u)
     }
 
     fn pdf(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: as for `sample`.
-            return unsafe { self.pdf_avx2(cpu, normal, dir) };
-        }
-        self.pdf_portable(normal, dir)
+        acdf_core::dispatch!(Self::pdf_one, self, normal, dir)
     }
 
     /// The plain table and the nodes built so far.
@@ -681,52 +671,15 @@ impl<B: TableBuilder> OrientedSampler<B> {
     /// [`sample`](SphereSampler::sample) itself: the node of the normal,
     /// then the draw.
     #[inline(always)]
-    fn sample_one(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
+    fn sample_one(&self, normal: Option<Vec3>, u: Vec2, _: Option<Avx2>) -> Option<SphereSample> {
         self.sample_from(unit_normal(normal).and_then(|n| self.node_dist(n)), u)
     }
 
     /// [`pdf`](SphereSampler::pdf) itself.
     #[inline(always)]
-    fn pdf_one(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
+    fn pdf_one(&self, normal: Option<Vec3>, dir: Vec3, _: Option<Avx2>) -> f32 {
         let node = unit_normal(normal).and_then(|n| self.node_dist(n));
         self.density_of(node, dir)
-    }
-
-    /// [`sample_one`](Self::sample_one) for CPUs without AVX2, out of line
-    /// so that `sample` stays a feature test and a call.
-    #[inline(never)]
-    fn sample_portable(&self, normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        self.sample_one(normal, u)
-    }
-
-    /// [`pdf_one`](Self::pdf_one) for CPUs without AVX2, out of line.
-    #[inline(never)]
-    fn pdf_portable(&self, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        self.pdf_one(normal, dir)
-    }
-
-    /// [`sample_one`](Self::sample_one) compiled for AVX2 and POPCNT: the
-    /// same IEEE operations in three-operand instructions, the column's
-    /// eight compares in one instruction and their count in another
-    /// (where the baseline code counts with multiplies), and blends for
-    /// the selects of the table's draw. The chain from the normal to the
-    /// region's first read is what a call waits for.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,popcnt")]
-    fn sample_avx2(
-        &self,
-        _: acdf_core::cpu::Avx2,
-        normal: Option<Vec3>,
-        u: Vec2,
-    ) -> Option<SphereSample> {
-        self.sample_one(normal, u)
-    }
-
-    /// [`pdf_one`](Self::pdf_one) compiled for AVX2 and POPCNT.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,popcnt")]
-    fn pdf_avx2(&self, _: acdf_core::cpu::Avx2, normal: Option<Vec3>, dir: Vec3) -> f32 {
-        self.pdf_one(normal, dir)
     }
 
     /// [`sample`](SphereSampler::sample) once the normal's node

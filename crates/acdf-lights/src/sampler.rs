@@ -2,6 +2,7 @@
 //! square, read as a latitude-longitude table, draws directions over the
 //! sphere.
 
+use acdf_core::simd::Avx2;
 use acdf_core::{Distribution2D, Result, Sample2D, SphereSample, SphereSampler, Vec2, Vec3};
 
 use crate::envmap::EnvMap;
@@ -68,7 +69,7 @@ impl<D: Distribution2D> LatLongSampler<D> {
 
     /// [`sample`](SphereSampler::sample) itself.
     #[inline(always)]
-    fn sample_one(&self, u: Vec2) -> Option<SphereSample> {
+    fn sample_one(&self, u: Vec2, _: Option<Avx2>) -> Option<SphereSample> {
         let s = self.dist.sample(u);
         finish_draw(
             &self.grid,
@@ -78,18 +79,9 @@ impl<D: Distribution2D> LatLongSampler<D> {
         )
     }
 
-    /// [`sample_one`](Self::sample_one) compiled for AVX2: the same IEEE
-    /// operations, in three-operand (VEX) instructions.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn sample_avx2(&self, _: acdf_core::cpu::Avx2, u: Vec2) -> Option<SphereSample> {
-        self.sample_one(u)
-    }
-
-    /// The density of `dir` compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn pdf_avx2(&self, _: acdf_core::cpu::Avx2, dir: Vec3) -> f32 {
+    /// [`pdf`](SphereSampler::pdf) itself.
+    #[inline(always)]
+    fn pdf_one(&self, dir: Vec3, _: Option<Avx2>) -> f32 {
         texel_density(&self.grid, &self.dist, dir)
     }
 
@@ -166,23 +158,12 @@ impl<D: Distribution2D> SphereSampler for LatLongSampler<D> {
 
     #[inline]
     fn sample(&self, _normal: Option<Vec3>, u: Vec2) -> Option<SphereSample> {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-            // requirement of the function's target features.
-            return unsafe { self.sample_avx2(cpu, u) };
-        }
-        self.sample_one(u)
+        acdf_core::dispatch!(Self::sample_one, self, u)
     }
 
     #[inline]
     fn pdf(&self, _normal: Option<Vec3>, dir: Vec3) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: as for `sample`.
-            return unsafe { self.pdf_avx2(cpu, dir) };
-        }
-        texel_density(&self.grid, &self.dist, dir)
+        acdf_core::dispatch!(Self::pdf_one, self, dir)
     }
 
     fn storage_bytes(&self) -> usize {

@@ -6,6 +6,7 @@ use crate::{Resolution, SliceBuilder, SliceDistribution};
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
 use acdf_core::geometry::{reflect_given_dot, sin_theta, wrap_angle};
 use acdf_core::search::{count_linear, count_sorted, LINEAR_ROW, SHORT_WINDOW};
+use acdf_core::simd::Avx2;
 use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use acdf_core::{
     clamp_unit, is_valid_outgoing, Brdf, BxdfSample, BxdfSampler, Distribution2D, Error, Result,
@@ -434,8 +435,8 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         self.finish_draw_with(
             draw,
             // Inlined so that the box test, taken by most draws, is
-            // compiled with the caller's target features (AVX2 in
-            // `sample_avx2`); the exact density, the rare path, stays out
+            // compiled with the caller's target features (AVX2 in the
+            // AVX2 instance of `dispatch!`); the exact density, the rare path, stays out
             // of line.
             #[inline(always)]
             || slice.dist.same_cell_around(s.p, CELL_MARGIN),
@@ -502,7 +503,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
 impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
     /// [`BxdfSampler::sample`] itself.
     #[inline(always)]
-    fn sample_one(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+    fn sample_one(&self, wo: Vec3, u: Vec2, _: Option<Avx2>) -> Option<BxdfSample> {
         if !is_valid_outgoing(wo) {
             return None;
         }
@@ -511,76 +512,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
 
     /// [`BxdfSampler::pdf`] itself.
     #[inline(always)]
-    fn pdf_one(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf_one(&self, wo: Vec3, wi: Vec3, _: Option<Avx2>) -> f32 {
         if !is_valid_outgoing(wo) {
             return 0.0;
         }
         self.pdf_in(self.slice_for_mix(wo).as_ref(), wo, wi)
-    }
-
-    /// [`sample_one`](Self::sample_one) for CPUs without AVX2, out of line
-    /// so that `sample` itself stays a feature test and a call: inlined
-    /// into the caller, without a stack frame of its own.
-    #[inline(never)]
-    fn sample_portable(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        self.sample_one(wo, u)
-    }
-
-    /// [`pdf_one`](Self::pdf_one) for CPUs without AVX2, out of line (see
-    /// [`sample_portable`](Self::sample_portable)).
-    #[inline(never)]
-    fn pdf_portable(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.pdf_one(wo, wi)
-    }
-
-    /// [`sample_one`](Self::sample_one) compiled for AVX2: the same IEEE
-    /// operations (no fused multiply-adds are formed), in three-operand
-    /// instructions with blends for the selects. The common path of a
-    /// table draw is inlined (`#[inline(always)]` down to the builder's
-    /// draw and box test) so that all of it is compiled so: out of line,
-    /// the draw would be baseline (SSE2) code, without three-operand
-    /// instructions or blends, behind a call on every `sample`
-    /// (`tests/examples/instruction_count.rs` counts the instructions).
-    ///
-    /// wo and u arrive as five `f32` in registers. Passed as `Vec3` and
-    /// `Vec2` they went through the stack, and where the caller stored
-    /// them in pieces (8 + 4 bytes) and this function loaded 8 bytes
-    /// across both, the load waited for the stores to retire instead of
-    /// being forwarded, at the head of the call's chain, so that every call
-    /// began with that wait before its first table read. Separate floats in
-    /// registers need no store or load at all.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn sample_avx2(
-        &self,
-        _: acdf_core::cpu::Avx2,
-        wo_x: f32,
-        wo_y: f32,
-        wo_z: f32,
-        u_x: f32,
-        u_y: f32,
-    ) -> Option<BxdfSample> {
-        self.sample_one(Vec3::new(wo_x, wo_y, wo_z), Vec2::new(u_x, u_y))
-    }
-
-    /// [`pdf_one`](Self::pdf_one) compiled for AVX2, wo and wi in
-    /// registers (see [`sample_avx2`](Self::sample_avx2)).
-    // The six coordinates travel in registers (see `sample_avx2`), beside
-    // the token.
-    #[allow(clippy::too_many_arguments)]
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn pdf_avx2(
-        &self,
-        _: acdf_core::cpu::Avx2,
-        wo_x: f32,
-        wo_y: f32,
-        wo_z: f32,
-        wi_x: f32,
-        wi_y: f32,
-        wi_z: f32,
-    ) -> f32 {
-        self.pdf_one(Vec3::new(wo_x, wo_y, wo_z), Vec3::new(wi_x, wi_y, wi_z))
     }
 }
 
@@ -956,25 +892,13 @@ impl<B: SliceBuilder> BxdfSampler for TabulatedBrdfSampler<B> {
     /// draw, otherwise a table draw of (x, v) and wi = reflect(wo, h); the
     /// reported density is the mixed pdf at the returned wi.
     fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-            // requirement of the function's target features.
-            return unsafe { self.sample_avx2(cpu, wo.x, wo.y, wo.z, u.x, u.y) };
-        }
-        self.sample_portable(wo, u)
+        acdf_core::dispatch!(Self::sample_one, self, wo, u)
     }
 
     /// The mixed density at wi, 0 for an invalid wo, a non-finite wi or wi at
     /// or below the horizon.
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-            // requirement of the function's target features.
-            return unsafe { self.pdf_avx2(cpu, wo.x, wo.y, wo.z, wi.x, wi.y, wi.z) };
-        }
-        self.pdf_portable(wo, wi)
+        acdf_core::dispatch!(Self::pdf_one, self, wo, wi)
     }
 
     /// [`sample`](BxdfSampler::sample) for each u, finding the slice once.

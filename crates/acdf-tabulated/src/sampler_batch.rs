@@ -27,9 +27,9 @@ use super::{
 };
 use crate::tabulate::HalfMap;
 use crate::{SliceBuilder, SliceDistribution};
-#[cfg(target_arch = "x86_64")]
-use acdf_core::cpu::Avx2;
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
+#[cfg(target_arch = "x86_64")]
+use acdf_core::simd::Avx2;
 use acdf_core::{clamp_unit, is_valid_outgoing, BxdfSample, Distribution2D, Sample2D, Vec2, Vec3};
 
 /// The geometry of a chunk of draws, one array per quantity (the layout
@@ -172,6 +172,7 @@ fn draw_lanes_generic<F: LaneFrames>(
     drawn: &[Sample2D],
     angles: &AngleLanes,
     out: &mut DrawLanes,
+    _: Option<Avx2>,
 ) {
     for l in 0..drawn.len().min(BATCH_CHUNK) {
         let geometry = frames.geometry(l);
@@ -187,7 +188,12 @@ fn draw_lanes_generic<F: LaneFrames>(
 
 /// [`SliceGeometry::coordinates_of`] of every lane, into `out`.
 #[inline(always)]
-fn coordinate_lanes_generic<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut CoordinateLanes) {
+fn coordinate_lanes_generic<F: LaneFrames>(
+    frames: &F,
+    wi: &[Vec3],
+    out: &mut CoordinateLanes,
+    _: Option<Avx2>,
+) {
     for l in 0..wi.len().min(BATCH_CHUNK) {
         let c = frames.geometry(l).coordinates_of(frames.wo(l), wi[l]);
         out.x[l] = c.p.x;
@@ -197,56 +203,15 @@ fn coordinate_lanes_generic<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut Co
     }
 }
 
-/// [`draw_lanes_generic`] compiled for AVX2 (the token proves the CPU
-/// has it).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn draw_lanes_avx2<F: LaneFrames>(
-    _: Avx2,
-    frames: &F,
-    drawn: &[Sample2D],
-    angles: &AngleLanes,
-    out: &mut DrawLanes,
-) {
-    draw_lanes_generic(frames, drawn, angles, out);
-}
-
-/// [`coordinate_lanes_generic`] compiled for AVX2 (the token proves the
-/// CPU has it).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn coordinate_lanes_avx2<F: LaneFrames>(
-    _: Avx2,
-    frames: &F,
-    wi: &[Vec3],
-    out: &mut CoordinateLanes,
-) {
-    coordinate_lanes_generic(frames, wi, out);
-}
-
 /// The table draws of a chunk carried to the shading frame.
 fn draw_lanes<F: LaneFrames>(frames: &F, drawn: &[Sample2D], out: &mut DrawLanes) {
     let angles = AngleLanes::of(drawn);
-    #[cfg(target_arch = "x86_64")]
-    if let Some(cpu) = acdf_core::cpu::avx2() {
-        // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-        // requirement of the function's target features.
-        unsafe { draw_lanes_avx2(cpu, frames, drawn, &angles, out) };
-        return;
-    }
-    draw_lanes_generic(frames, drawn, &angles, out);
+    acdf_core::dispatch!(draw_lanes_generic, frames, drawn, &angles, out)
 }
 
 /// The table coordinates of a chunk of incident directions.
 fn coordinate_lanes<F: LaneFrames>(frames: &F, wi: &[Vec3], out: &mut CoordinateLanes) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(cpu) = acdf_core::cpu::avx2() {
-        // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-        // requirement of the function's target features.
-        unsafe { coordinate_lanes_avx2(cpu, frames, wi, out) };
-        return;
-    }
-    coordinate_lanes_generic(frames, wi, out);
+    acdf_core::dispatch!(coordinate_lanes_generic, frames, wi, out)
 }
 
 impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
@@ -362,6 +327,7 @@ fn outgoing_cells_generic<D>(
     n: usize,
     cells: &mut [u32; BATCH_CHUNK],
     valid: &mut [bool; BATCH_CHUNK],
+    _: Option<Avx2>,
 ) {
     for l in 0..n {
         let wo = Vec3::new(lanes.wo_x[l], lanes.wo_y[l], lanes.wo_z[l]);
@@ -393,21 +359,6 @@ fn outgoing_cells_generic<D>(
     }
 }
 
-/// [`outgoing_cells_generic`] compiled for AVX2 (the token proves the CPU
-/// has it).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn outgoing_cells_avx2<D>(
-    _: Avx2,
-    bounds: &[f32],
-    lanes: &mut OutgoingLanes<'_, D>,
-    n: usize,
-    cells: &mut [u32; BATCH_CHUNK],
-    valid: &mut [bool; BATCH_CHUNK],
-) {
-    outgoing_cells_generic(bounds, lanes, n, cells, valid);
-}
-
 /// The θ_o cells and rotations of a chunk's outgoing directions.
 fn outgoing_cells<D>(
     bounds: &[f32],
@@ -416,14 +367,7 @@ fn outgoing_cells<D>(
     cells: &mut [u32; BATCH_CHUNK],
     valid: &mut [bool; BATCH_CHUNK],
 ) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(cpu) = acdf_core::cpu::avx2() {
-        // SAFETY: the token proves the CPU has AVX2 and FMA, the one
-        // requirement of the function's target features.
-        unsafe { outgoing_cells_avx2(cpu, bounds, lanes, n, cells, valid) };
-        return;
-    }
-    outgoing_cells_generic(bounds, lanes, n, cells, valid);
+    acdf_core::dispatch!(outgoing_cells_generic, bounds, lanes, n, cells, valid)
 }
 
 impl<'a, D: Distribution2D> OutgoingLanes<'a, D> {
@@ -613,7 +557,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
                     }
                     Some(_) => 0.0,
                     // An invalid wo, or a slice that failed to build.
-                    None => self.pdf_one(wc[l], wi),
+                    None => self.pdf_one(wc[l], wi, None),
                 };
             }
         }

@@ -209,10 +209,10 @@ impl OutgoingSampler {
     #[inline(always)]
     pub(super) fn sample_batch_one(
         &self,
-        simd: Simd,
         wo: Vec3,
         u: &[Vec2],
         out: &mut [Option<BxdfSample>],
+        simd: Simd,
     ) {
         if !is_valid_outgoing(wo) {
             out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
@@ -230,10 +230,10 @@ impl OutgoingSampler {
     #[inline(always)]
     pub(super) fn sample_each_one(
         &self,
-        simd: Simd,
         wo: &[Vec3],
         u: &[Vec2],
         out: &mut [Option<BxdfSample>],
+        simd: Simd,
     ) {
         let mut frames = EachFrame::new();
         for ((wc, uc), oc) in wo
@@ -250,7 +250,7 @@ impl OutgoingSampler {
     /// [`BxdfSampler::pdf_batch`](acdf_core::BxdfSampler::pdf_batch)
     /// itself, as [`sample_batch_one`](Self::sample_batch_one).
     #[inline(always)]
-    pub(super) fn pdf_batch_one(&self, simd: Simd, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+    pub(super) fn pdf_batch_one(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32], simd: Simd) {
         if !is_valid_outgoing(wo) {
             out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
             return;
@@ -264,7 +264,7 @@ impl OutgoingSampler {
     /// [`BxdfSampler::pdf_each`](acdf_core::BxdfSampler::pdf_each) itself,
     /// as [`sample_each_one`](Self::sample_each_one).
     #[inline(always)]
-    pub(super) fn pdf_each_one(&self, simd: Simd, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+    pub(super) fn pdf_each_one(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32], simd: Simd) {
         let mut frames = EachFrame::new();
         for ((wc, ic), oc) in wo
             .chunks(CHUNK)

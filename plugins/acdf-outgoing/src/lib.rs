@@ -916,7 +916,7 @@ const CELL_MARGIN: (f32, f32) = (1.0 / 32768.0, 1.0 / 65536.0);
 impl OutgoingSampler {
     /// [`BxdfSampler::sample`] itself.
     #[inline(always)]
-    fn sample_one(&self, simd: Simd, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+    fn sample_one(&self, wo: Vec3, u: Vec2, simd: Simd) -> Option<BxdfSample> {
         if !is_valid_outgoing(wo) {
             return None;
         }
@@ -984,7 +984,7 @@ impl OutgoingSampler {
 
     /// [`BxdfSampler::pdf`] itself.
     #[inline(always)]
-    fn pdf_one(&self, simd: Simd, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf_one(&self, wo: Vec3, wi: Vec3, simd: Simd) -> f32 {
         if !is_valid_outgoing(wo) {
             return 0.0;
         }
@@ -1029,35 +1029,35 @@ impl BxdfSampler for OutgoingSampler {
     /// slice picked by the blend weights; the density is `pdf` of the
     /// returned wi (from the drawn cells where they certainly agree).
     fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        acdf_core::dispatch!(|simd| self.sample_one(simd, wo, u))
+        acdf_core::dispatch!(Self::sample_one, self, wo, u)
     }
 
     /// (1 - a) times the blended table density plus a cos θ_i / π; 0 for an
     /// invalid wo, a non-finite wi or one at or below the horizon.
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        acdf_core::dispatch!(|simd| self.pdf_one(simd, wo, wi))
+        acdf_core::dispatch!(Self::pdf_one, self, wo, wi)
     }
 
     /// `sample` for every u, with the blend and rotation of wo found once.
     fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
-        acdf_core::dispatch!(|simd| self.sample_batch_one(simd, wo, u, out))
+        acdf_core::dispatch!(Self::sample_batch_one, self, wo, u, out)
     }
 
     /// `pdf` for every wi, with the blend and rotation of wo found once.
     fn pdf_batch(&self, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
-        acdf_core::dispatch!(|simd| self.pdf_batch_one(simd, wo, wi, out))
+        acdf_core::dispatch!(Self::pdf_batch_one, self, wo, wi, out)
     }
 
     /// `sample` for every pair, a chunk of 64 at a time as
     /// [`sample_batch`](Self::sample_batch) does, with the blend and
     /// rotation of each wo.
     fn sample_each(&self, wo: &[Vec3], u: &[Vec2], out: &mut [Option<BxdfSample>]) {
-        acdf_core::dispatch!(|simd| self.sample_each_one(simd, wo, u, out))
+        acdf_core::dispatch!(Self::sample_each_one, self, wo, u, out)
     }
 
     /// `pdf` for every pair, as [`sample_each`](Self::sample_each).
     fn pdf_each(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
-        acdf_core::dispatch!(|simd| self.pdf_each_one(simd, wo, wi, out))
+        acdf_core::dispatch!(Self::pdf_each_one, self, wo, wi, out)
     }
 
     /// The breakpoints (4 bytes each) and every slice's stored arrays.

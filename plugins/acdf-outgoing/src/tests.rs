@@ -176,12 +176,12 @@ fn batch_forms_equal_single_calls() {
         let mut drawn = vec![None; u.len()];
         s.sample_batch(wo, &u, &mut drawn);
         let mut portable = vec![None; u.len()];
-        s.sample_batch_one(None, wo, &u, &mut portable);
+        s.sample_batch_one(wo, &u, &mut portable, None);
         let mut wis = Vec::new();
         for ((&u, d), p) in u.iter().zip(&drawn).zip(&portable) {
             let one = s.sample(wo, u);
             assert_eq!(bits(&one), bits(d), "{wo} {u}");
-            assert_eq!(bits(&s.sample_one(None, wo, u)), bits(d), "{wo} {u}");
+            assert_eq!(bits(&s.sample_one(wo, u, None)), bits(d), "{wo} {u}");
             assert_eq!(bits(p), bits(d), "{wo} {u}");
             wis.push(d.map_or(direction(0.3, 2.0), |d| d.wi));
         }
@@ -194,10 +194,10 @@ fn batch_forms_equal_single_calls() {
         let mut densities = vec![0.0; wis.len()];
         s.pdf_batch(wo, &wis, &mut densities);
         let mut portable = vec![0.0; wis.len()];
-        s.pdf_batch_one(None, wo, &wis, &mut portable);
+        s.pdf_batch_one(wo, &wis, &mut portable, None);
         for ((&wi, &p), &q) in wis.iter().zip(&densities).zip(&portable) {
             assert_eq!(s.pdf(wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
-            assert_eq!(s.pdf_one(None, wo, wi).to_bits(), p.to_bits(), "{wo} {wi}");
+            assert_eq!(s.pdf_one(wo, wi, None).to_bits(), p.to_bits(), "{wo} {wi}");
             assert_eq!(q.to_bits(), p.to_bits(), "{wo} {wi}");
         }
     }
@@ -237,7 +237,7 @@ fn each_forms_equal_single_calls() {
     let mut drawn = vec![None; n];
     s.sample_each(&wo, &u, &mut drawn);
     let mut portable = vec![None; n];
-    s.sample_each_one(None, &wo, &u, &mut portable);
+    s.sample_each_one(&wo, &u, &mut portable, None);
     let mut wis = Vec::new();
     for k in 0..n {
         assert_eq!(
@@ -256,7 +256,7 @@ fn each_forms_equal_single_calls() {
     let mut densities = vec![0.0; n];
     s.pdf_each(&wo, &wis, &mut densities);
     let mut portable = vec![0.0; n];
-    s.pdf_each_one(None, &wo, &wis, &mut portable);
+    s.pdf_each_one(&wo, &wis, &mut portable, None);
     for k in 0..n {
         assert_eq!(
             s.pdf(wo[k], wis[k]).to_bits(),

@@ -23,67 +23,151 @@ pub mod search;
 
 pub use cpu::Avx2;
 
-/// Runs an expression compiled with AVX2 and FMA enabled, when the CPU has
+/// Runs code compiled with AVX2, FMA and POPCNT enabled, when the CPU has
 /// them and the portable path is not forced, and compiled for the target's
-/// baseline otherwise: `dispatch!(|cpu| body)`, where `cpu` is an
-/// `Option<Avx2>`, the token in the first case and `None` in the second.
+/// baseline otherwise. The code is handed an `Option<Avx2>`, its last
+/// argument: the token in the first case, `None` in the second.
 ///
-/// This is the one way acdf chooses code by CPU. The body is inlined into
-/// one of two instances, so the code it calls with `#[inline(always)]`
-/// (the plain arithmetic of a draw, and the vector kernels it picks when
-/// handed the token) is compiled for the features of the instance it runs
-/// in. Both instances compute the same results; the choice only decides
-/// the speed. (The macro marks the closure `#[inline(always)]`: a closure
-/// left out of line would be compiled for the baseline, its vector kernels
-/// with it, whichever instance called it.)
+/// This is the one way acdf chooses code by CPU. The code is inlined into
+/// one of two instances, so what it calls with `#[inline(always)]` (the
+/// plain arithmetic of a draw, and the vector kernels it picks when handed
+/// the token) is compiled for the features of the instance it runs in.
+/// Both instances compute the same results; the choice only decides the
+/// speed.
+///
+/// `dispatch!(f, a, b, ...)` calls `f(a, b, ..., cpu)` (up to six
+/// arguments before `cpu`), a method as `dispatch!(Self::sample_one, self,
+/// wo, u)`. The arguments are passed as parameters of the compiled
+/// instances, not captured: in a closure's environment the compiler no
+/// longer knows that a `&mut` slice aliases nothing else, leaves loops over
+/// it scalar, and reads small values such as a direction back from memory.
 ///
 /// # Examples
 ///
 /// ```
-/// let sum = acdf_core::dispatch!(|cpu| {
-///     // `cpu` is `Some` where AVX2 code may run; plain code runs either way.
+/// use acdf_core::simd::Avx2;
+///
+/// /// Plain code, compiled once per instance; `cpu` is `Some` where AVX2
+/// /// code may run, for a kernel that has a vector form.
+/// #[inline(always)]
+/// fn scale(by: f32, v: &mut [f32], cpu: Option<Avx2>) {
 ///     let _ = cpu;
-///     (1..=4).map(|k| k as f32).sum::<f32>()
-/// });
-/// assert_eq!(sum, 10.0);
+///     v.iter_mut().for_each(|x| *x *= by);
+/// }
+///
+/// let mut v = [1.0, 2.0];
+/// acdf_core::dispatch!(scale, 3.0, &mut v);
+/// assert_eq!(v, [3.0, 6.0]);
 /// ```
 #[macro_export]
 macro_rules! dispatch {
-    (|$cpu:ident| $body:expr) => {
+    ($f:expr $(,)?) => {
         $crate::simd::dispatch(
             #[inline(always)]
-            |$cpu: ::core::option::Option<$crate::simd::Avx2>| $body,
+            |cpu| $f(cpu),
+        )
+    };
+    ($f:expr, $a:expr $(,)?) => {
+        $crate::simd::dispatch1(
+            #[inline(always)]
+            |a, cpu| $f(a, cpu),
+            $a,
+        )
+    };
+    ($f:expr, $a:expr, $b:expr $(,)?) => {
+        $crate::simd::dispatch2(
+            #[inline(always)]
+            |a, b, cpu| $f(a, b, cpu),
+            $a,
+            $b,
+        )
+    };
+    ($f:expr, $a:expr, $b:expr, $c:expr $(,)?) => {
+        $crate::simd::dispatch3(
+            #[inline(always)]
+            |a, b, c, cpu| $f(a, b, c, cpu),
+            $a,
+            $b,
+            $c,
+        )
+    };
+    ($f:expr, $a:expr, $b:expr, $c:expr, $d:expr $(,)?) => {
+        $crate::simd::dispatch4(
+            #[inline(always)]
+            |a, b, c, d, cpu| $f(a, b, c, d, cpu),
+            $a,
+            $b,
+            $c,
+            $d,
+        )
+    };
+    ($f:expr, $a:expr, $b:expr, $c:expr, $d:expr, $e:expr $(,)?) => {
+        $crate::simd::dispatch5(
+            #[inline(always)]
+            |a, b, c, d, e, cpu| $f(a, b, c, d, e, cpu),
+            $a,
+            $b,
+            $c,
+            $d,
+            $e,
+        )
+    };
+    ($f:expr, $a:expr, $b:expr, $c:expr, $d:expr, $e:expr, $g:expr $(,)?) => {
+        $crate::simd::dispatch6(
+            #[inline(always)]
+            |a, b, c, d, e, g, cpu| $f(a, b, c, d, e, g, cpu),
+            $a,
+            $b,
+            $c,
+            $d,
+            $e,
+            $g,
         )
     };
 }
 
-/// The function behind [`dispatch!`](crate::dispatch!), which calls it with
-/// an `#[inline(always)]` closure; call the macro, not this.
-#[doc(hidden)]
-#[inline(always)]
-pub fn dispatch<R>(kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(cpu) = cpu::avx2() {
-        return with_avx2(cpu, kernel);
-    }
-    portable(kernel)
+/// The two instances behind one spelling of [`dispatch!`](crate::dispatch!):
+/// a function taking the listed arguments and the CPU choice, a compiled
+/// copy of it for AVX2 and one out of line for the baseline.
+macro_rules! instances {
+    ($name:ident, $($arg:ident: $ty:ident),*) => {
+        #[doc(hidden)]
+        #[inline(always)]
+        pub fn $name<$($ty,)* R>(
+            kernel: impl FnOnce($($ty,)* Option<Avx2>) -> R,
+            $($arg: $ty),*
+        ) -> R {
+            #[cfg(target_arch = "x86_64")]
+            if let Some(cpu) = cpu::avx2() {
+                #[target_feature(enable = "avx2,fma,popcnt")]
+                fn compiled<$($ty,)* R>(
+                    cpu: Avx2,
+                    kernel: impl FnOnce($($ty,)* Option<Avx2>) -> R,
+                    $($arg: $ty),*
+                ) -> R {
+                    kernel($($arg,)* Some(cpu))
+                }
+                // SAFETY: the token proves the CPU has AVX2 and FMA, the
+                // features `compiled` is built for (detection requires
+                // POPCNT beside them).
+                return unsafe { compiled(cpu, kernel, $($arg),*) };
+            }
+            #[inline(never)]
+            fn portable<$($ty,)* R>(
+                kernel: impl FnOnce($($ty,)* Option<Avx2>) -> R,
+                $($arg: $ty),*
+            ) -> R {
+                kernel($($arg,)* None)
+            }
+            portable(kernel, $($arg),*)
+        }
+    };
 }
 
-/// `kernel(Some(cpu))` compiled for AVX2, FMA and POPCNT.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn with_avx2<R>(cpu: Avx2, kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
-    #[target_feature(enable = "avx2,fma,popcnt")]
-    fn compiled<R>(cpu: Avx2, kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
-        kernel(Some(cpu))
-    }
-    // SAFETY: the token proves the CPU has AVX2 and FMA, the features
-    // `compiled` is built for (detection requires POPCNT beside them).
-    unsafe { compiled(cpu, kernel) }
-}
-
-/// `kernel(None)`, out of line so that the caller's fast path stays small.
-#[inline(never)]
-fn portable<R>(kernel: impl FnOnce(Option<Avx2>) -> R) -> R {
-    kernel(None)
-}
+instances!(dispatch,);
+instances!(dispatch1, a: A);
+instances!(dispatch2, a: A, b: B);
+instances!(dispatch3, a: A, b: B, c: C);
+instances!(dispatch4, a: A, b: B, c: C, d: D);
+instances!(dispatch5, a: A, b: B, c: C, d: D, e: E);
+instances!(dispatch6, a: A, b: B, c: C, d: D, e: E, g: G);
