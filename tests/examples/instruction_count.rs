@@ -1,8 +1,9 @@
 //! A fixed workload for `valgrind --tool=callgrind`, whose instruction
-//! counts are repeatable whatever the machine's load: the uniform and
-//! `adaptive:dp` samplers on the built-in nickel at the isotropic
-//! resolution, `sample` and `pdf` one call at a time (wo changing every
-//! call) and `sample_batch` / `sample_each`, 10^5 each.
+//! counts are repeatable whatever the machine's load: the uniform,
+//! `adaptive:dp` and `outgoing:chi2` samplers on the built-in nickel at the
+//! isotropic resolution, `sample` and `pdf` one call at a time (wo changing
+//! every call) and the batch forms (`sample_batch`, `sample_each`, and for
+//! `outgoing:chi2` also `pdf_batch` and `pdf_each`), 10^5 each.
 //!
 //! ```text
 //! cargo build --release -p acdf-conformance --example instruction_count
@@ -108,6 +109,61 @@ pub fn workload_adaptive_each(
     out[0] = None;
 }
 
+#[no_mangle]
+#[inline(never)]
+pub fn workload_outgoing_sample(s: &dyn BxdfSampler, wo: &[Vec3], u: &[Vec2]) -> f32 {
+    wo.iter()
+        .zip(u)
+        .map(|(&wo, &u)| s.sample(wo, u).map_or(2.0, |x| x.wi.x))
+        .sum()
+}
+
+#[no_mangle]
+#[inline(never)]
+pub fn workload_outgoing_pdf(s: &dyn BxdfSampler, wo: &[Vec3], wi: &[Vec3]) -> f32 {
+    wo.iter()
+        .zip(wi)
+        .map(|(&wo, &wi)| s.pdf(wo, wi) + 1.0)
+        .sum()
+}
+
+#[no_mangle]
+#[inline(never)]
+pub fn workload_outgoing_batch(
+    s: &dyn BxdfSampler,
+    wo: Vec3,
+    u: &[Vec2],
+    out: &mut [Option<BxdfSample>],
+) {
+    s.sample_batch(wo, u, out);
+    out[1] = None;
+}
+
+#[no_mangle]
+#[inline(never)]
+pub fn workload_outgoing_each(
+    s: &dyn BxdfSampler,
+    wo: &[Vec3],
+    u: &[Vec2],
+    out: &mut [Option<BxdfSample>],
+) {
+    s.sample_each(wo, u, out);
+    out[1] = None;
+}
+
+#[no_mangle]
+#[inline(never)]
+pub fn workload_outgoing_pdf_batch(s: &dyn BxdfSampler, wo: Vec3, wi: &[Vec3], out: &mut [f32]) {
+    s.pdf_batch(wo, wi, out);
+}
+
+#[no_mangle]
+#[inline(never)]
+pub fn workload_outgoing_pdf_each(s: &dyn BxdfSampler, wo: &[Vec3], wi: &[Vec3], out: &mut [f32]) {
+    s.pdf_each(wo, wi, out);
+    out[1] = 0.0;
+}
+
 fn main() {
     let nickel = acdf_materials::builtin("nickel").expect("built-in nickel");
     let uniform = UniformBrdfSampler::new(
@@ -116,6 +172,10 @@ fn main() {
         PiecewiseConstantBuilder,
     )
     .expect("sampler");
+    let builder = acdf_outgoing::OutgoingBuilder::by_name("chi2", None, 64).expect("builder");
+    let outgoing =
+        acdf_outgoing::OutgoingSampler::new(nickel.clone(), Resolution::ISOTROPIC, builder)
+            .expect("sampler");
     let adaptive = acdf_adaptive::adaptive_sampler(nickel, Resolution::ISOTROPIC, "dp", None)
         .expect("sampler");
     uniform.build_all().expect("slices");
@@ -140,5 +200,16 @@ fn main() {
     total += out.iter().flatten().map(|s| s.pdf).sum::<f32>();
     workload_adaptive_each(black_box(&adaptive), &wo, &u, &mut out);
     total += out.iter().flatten().map(|s| s.pdf).sum::<f32>();
+    total += workload_outgoing_sample(black_box(&outgoing), &wo, &u);
+    total += workload_outgoing_pdf(black_box(&outgoing), &wo, &wi);
+    workload_outgoing_batch(black_box(&outgoing), wo_one, &u, &mut out);
+    total += out.iter().flatten().map(|s| s.pdf).sum::<f32>();
+    workload_outgoing_each(black_box(&outgoing), &wo, &u, &mut out);
+    total += out.iter().flatten().map(|s| s.pdf).sum::<f32>();
+    let mut densities = vec![0.0; N];
+    workload_outgoing_pdf_batch(black_box(&outgoing), wo_one, &wi, &mut densities);
+    total += densities.iter().sum::<f32>();
+    workload_outgoing_pdf_each(black_box(&outgoing), &wo, &wi, &mut densities);
+    total += densities.iter().sum::<f32>();
     println!("{total:e}");
 }

@@ -43,6 +43,7 @@ use std::time::Instant;
 
 use acdf_adaptive_cdf::{AdaptiveBuilder, AdaptiveCdf2D};
 use acdf_core::geometry::spherical_direction;
+use acdf_core::simd::clock::clock_ghz;
 use acdf_core::{Brdf, BxdfSampler, Distribution2D, Sample2D, Vec2, Vec3};
 use acdf_materials::merl::MerlTable;
 use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
@@ -112,7 +113,7 @@ pub struct BenchReport {
     pub load_average: Option<f64>,
     /// The core clock in GHz just before the BRDF samplers are timed
     /// (`clock_ghz_start`) and just after (`clock_ghz_end`), estimated from
-    /// a chain of dependent integer additions ([`clock_ghz`]); `null` off
+    /// a chain of dependent integer additions (`acdf_core::simd::clock`); `null` off
     /// x86-64. One call of `sample` is a chain of dependent steps of a
     /// nearly fixed number of cycles, so its rate follows the clock, which
     /// varies between runs on a shared machine; the table printed beside the
@@ -209,46 +210,6 @@ fn load_average() -> Option<f64> {
         .next()?
         .parse()
         .ok()
-}
-
-/// The core clock in GHz: additions per second in a chain where each
-/// waits for the one before, which takes one cycle per addition on x86-64
-/// cores; best of five runs of 10^8 (about 30 ms each at 3.5 GHz).
-///
-/// The addend is a register, not an immediate: cores that fold chains of
-/// immediate additions at register renaming (recent Intel cores do) would
-/// otherwise retire several per cycle, and the reading would be a multiple
-/// of the clock.
-#[cfg(target_arch = "x86_64")]
-pub fn clock_ghz() -> Option<f64> {
-    const ADDITIONS: u64 = 100_000_000;
-    let seconds = best_seconds(5, || {
-        let mut x = 0u64;
-        let one = std::hint::black_box(1u64);
-        for _ in 0..ADDITIONS / 4 {
-            // SAFETY: four additions of one register to another; no memory,
-            // no stack.
-            unsafe {
-                std::arch::asm!(
-                    "add {x}, {one}",
-                    "add {x}, {one}",
-                    "add {x}, {one}",
-                    "add {x}, {one}",
-                    x = inout(reg) x,
-                    one = in(reg) one,
-                    options(nomem, nostack),
-                );
-            }
-        }
-        std::hint::black_box(x);
-    });
-    Some(ADDITIONS as f64 / seconds / 1e9)
-}
-
-/// The core clock is not estimated off x86-64.
-#[cfg(not(target_arch = "x86_64"))]
-pub fn clock_ghz() -> Option<f64> {
-    None
 }
 
 /// The `cpu` field of [`BenchReport`].

@@ -6,7 +6,7 @@
 //! density at the point), then about a hundred operations of geometry
 //! (two sine/cosine pairs, a rotation, a reflection, a Jacobian). In the
 //! AVX2 build the choice of slice and the searches run 8 lanes at a time
-//! (`shared/lanes.rs`: selects, then binary lifting over the grid's narrow
+//! (`acdf_core::simd::shared_grid`: selects, then binary lifting over the grid's narrow
 //! indices, each step one gather per group of 8 lanes); in the portable
 //! build, or where an array is too large for 32-bit gather indices, they
 //! run one lane at a time. The sines and cosines of the chunk's
@@ -32,7 +32,7 @@ use acdf_core::{is_valid_outgoing, BxdfSample, Vec2, Vec3};
 const CHUNK: usize = 64;
 
 /// The AVX2 token where the batch function runs in AVX2 code, so that the
-/// chunk's searches run in lanes (`shared/lanes.rs`); `None` for the
+/// chunk's searches run in lanes (`acdf_core::simd::shared_grid`); `None` for the
 /// portable path, which searches one lane at a time. (Elsewhere than on
 /// x86-64, a type with no token, so always `None`.)
 #[cfg(target_arch = "x86_64")]
@@ -322,9 +322,9 @@ impl OutgoingSampler {
         #[cfg(not(target_arch = "x86_64"))]
         let _ = simd;
         #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = simd {
-            use crate::shared::{DrawInputs, DrawnPoints};
+        if let Some((cpu, grid)) = simd.zip(self.slices.lane_grid()) {
             use acdf_core::search::lanes::STAGE;
+            use acdf_core::simd::shared_grid::{DrawInputs, DrawnPoints};
             in_lanes = true;
             for at in (0..CHUNK).step_by(STAGE) {
                 let input = DrawInputs {
@@ -339,9 +339,7 @@ impl OutgoingSampler {
                     p: &mut points.p_xv[at..],
                     same: &mut points.same[at..],
                 };
-                in_lanes &=
-                    self.slices
-                        .sample_lanes(cpu, &input, self.cells, super::CELL_MARGIN, out);
+                in_lanes &= grid.sample_lanes(cpu, &input, self.cells, super::CELL_MARGIN, out);
             }
         }
         if !in_lanes {
@@ -438,11 +436,11 @@ impl OutgoingSampler {
         #[cfg(not(target_arch = "x86_64"))]
         let _ = simd;
         #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = simd {
+        if let Some((cpu, grid)) = simd.zip(self.slices.lane_grid()) {
             use acdf_core::search::lanes::STAGE;
             in_lanes = true;
             for at in (0..CHUNK).step_by(STAGE) {
-                in_lanes &= self.slices.density_lanes(
+                in_lanes &= grid.density_lanes(
                     cpu,
                     &k[at..],
                     &t[at..],

@@ -72,6 +72,7 @@
 // `!(x > 0.0)` is how this module says "not positive, or NaN": the negated
 // comparison is the point, since NaN must take the rejecting branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+#![forbid(unsafe_code)]
 
 pub mod anisotropic;
 mod batch;
@@ -727,7 +728,7 @@ impl OutgoingSampler {
 /// rescaled to [0, 1) and the drawn slice's weight. (The lanes of the
 /// batch paths make the same choice with selects rather than a branch,
 /// which a coin toss mispredicts on half the draws:
-/// `SharedSlices::sample_lanes`.)
+/// `acdf_core::simd::shared_grid`.)
 #[inline(always)]
 fn pick_slice(k: usize, t: f32, u: Vec2) -> (usize, usize, f32, f32) {
     let (drawn, other, ux, w_drawn) = if u.x < 1.0 - t {

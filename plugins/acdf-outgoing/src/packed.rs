@@ -50,7 +50,7 @@ pub struct PackedCdf2D {
 
 /// The entries compared at once by [`count_at_or_below`]: 32 lanes of 16
 /// or 8 bits, four or two SSE2 compares.
-pub(crate) const LANES: usize = 32;
+pub(crate) const LANES: usize = acdf_core::search::NARROW_WINDOW;
 
 /// A stored vertex position or CDF value: an unsigned integer that
 /// counts the stored values at or below a point in 16-bit or 8-bit
@@ -78,14 +78,7 @@ impl Stored for u16 {
     }
     #[inline(always)]
     fn window_mask(window: &[u16; LANES], key: u16) -> u32 {
-        #[cfg(target_arch = "x86_64")]
-        {
-            mask_u16_sse2(window, key)
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            mask_portable(window, key)
-        }
+        acdf_core::search::window_at_or_below_u16(window, key)
     }
     #[inline(always)]
     fn at_or_below(self, key: u16) -> bool {
@@ -104,77 +97,11 @@ impl Stored for u8 {
     }
     #[inline(always)]
     fn window_mask(window: &[u8; LANES], key: u8) -> u32 {
-        #[cfg(target_arch = "x86_64")]
-        {
-            mask_u8_sse2(window, key)
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            mask_portable(window, key)
-        }
+        acdf_core::search::window_at_or_below_u8(window, key)
     }
     #[inline(always)]
     fn at_or_below(self, key: u8) -> bool {
         self <= key
-    }
-}
-
-/// [`Stored::window_mask`] one entry at a time: the form for CPUs other
-/// than x86-64, and the reference the tests hold the SSE2 forms to.
-#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-#[inline(always)]
-fn mask_portable<P: Stored>(window: &[P; LANES], key: P) -> u32 {
-    window
-        .iter()
-        .enumerate()
-        .fold(0, |mask, (l, &p)| mask | (p.at_or_below(key) as u32) << l)
-}
-
-/// [`Stored::window_mask`] of 16-bit values by SSE2 (the x86-64
-/// baseline): p <= key exactly when the saturating difference p - key is
-/// zero; the word compares are narrowed to bytes and read as bit masks.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn mask_u16_sse2(window: &[u16; LANES], key: u16) -> u32 {
-    use std::arch::x86_64::{
-        __m128i, _mm_cmpeq_epi16, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16,
-        _mm_set1_epi16, _mm_setzero_si128, _mm_subs_epu16,
-    };
-    // SAFETY: SSE2 is part of the x86-64 baseline, and every load reads
-    // eight values inside `window` (offsets 0, 8, 16 and 24 of 32).
-    unsafe {
-        let k = _mm_set1_epi16(key as i16);
-        let zero = _mm_setzero_si128();
-        let at = |l: usize| {
-            let p = _mm_loadu_si128(window.as_ptr().add(l) as *const __m128i);
-            _mm_cmpeq_epi16(_mm_subs_epu16(p, k), zero)
-        };
-        // Each word lane is 0 or -1, which the saturating pack keeps.
-        let low = _mm_movemask_epi8(_mm_packs_epi16(at(0), at(8))) as u32;
-        let high = _mm_movemask_epi8(_mm_packs_epi16(at(16), at(24))) as u32;
-        low | high << 16
-    }
-}
-
-/// [`Stored::window_mask`] of 8-bit values by SSE2, as
-/// [`mask_u16_sse2`].
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn mask_u8_sse2(window: &[u8; LANES], key: u8) -> u32 {
-    use std::arch::x86_64::{
-        __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_movemask_epi8, _mm_set1_epi8,
-        _mm_setzero_si128, _mm_subs_epu8,
-    };
-    // SAFETY: SSE2 is part of the x86-64 baseline, and both loads read
-    // sixteen values inside `window` (offsets 0 and 16 of 32).
-    unsafe {
-        let k = _mm_set1_epi8(key as i8);
-        let zero = _mm_setzero_si128();
-        let at = |l: usize| {
-            let p = _mm_loadu_si128(window.as_ptr().add(l) as *const __m128i);
-            _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_subs_epu8(p, k), zero)) as u32
-        };
-        at(0) | at(16) << 16
     }
 }
 
@@ -732,28 +659,6 @@ mod tests {
 
     /// The SSE2 window masks equal the portable ones bit for bit, keys at
     /// and around every entry and the ends of the range included.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn sse2_masks_equal_the_portable_masks() {
-        for seed in 0..20 {
-            let v = sorted_values(LANES, 65536, seed);
-            let w16: [u16; LANES] = std::array::from_fn(|l| v[l] as u16);
-            let w8: [u8; LANES] = std::array::from_fn(|l| (v[l] >> 8) as u8);
-            let mut keys16: Vec<u16> = vec![0, 1, 0x7fff, 0x8000, 0xfffe, 0xffff];
-            let mut keys8: Vec<u8> = vec![0, 1, 0x7f, 0x80, 0xfe, 0xff];
-            for l in 0..LANES {
-                keys16.extend([w16[l], w16[l].wrapping_sub(1), w16[l].wrapping_add(1)]);
-                keys8.extend([w8[l], w8[l].wrapping_sub(1), w8[l].wrapping_add(1)]);
-            }
-            for k in keys16 {
-                assert_eq!(mask_u16_sse2(&w16, k), mask_portable(&w16, k), "{k}");
-            }
-            for k in keys8 {
-                assert_eq!(mask_u8_sse2(&w8, k), mask_portable(&w8, k), "{k}");
-            }
-        }
-    }
-
     #[test]
     fn quantised_cdfs_keep_every_positive_segment() {
         let masses = [1.0, 1e-12, 0.0, 3.0, 1e-9, 0.0];

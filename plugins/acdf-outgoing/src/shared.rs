@@ -26,12 +26,10 @@ use super::packed::{
     Curve, Segment, Stored, Q, QF,
 };
 use acdf_adaptive_cdf::simplify::Simplifier;
-#[cfg(target_arch = "x86_64")]
-mod lanes;
 use acdf_adaptive_cdf::AdaptiveCdf2D;
-use acdf_core::{Error, Result};
 #[cfg(target_arch = "x86_64")]
-pub use lanes::{DrawInputs, DrawnPoints};
+use acdf_core::simd::shared_grid::SharedGrid;
+use acdf_core::{Error, Result};
 
 /// Where a point of the unit square lies on the grid: its marginal
 /// segment `j`, the index `at` of its conditional segment's first vertex
@@ -79,7 +77,7 @@ pub struct SharedSlices {
 /// Entries after the CDF values and the conditional positions that are
 /// not part of them: a lane gather reads four bytes at an entry, so the
 /// last value (two bytes) and the last position (one byte) need them
-/// (`lanes.rs`). They are not stored in files or counted as storage.
+/// (`acdf_core::simd::shared_grid`). They are not stored in files or counted as storage.
 const CDF_PAD: usize = 1;
 const POSITION_PAD: usize = 3;
 
@@ -290,6 +288,21 @@ impl SharedSlices {
     /// conditional arrays (the last, where they end).
     pub fn offsets(&self) -> &[u16] {
         &self.grid[self.m..]
+    }
+
+    /// The stored arrays as the batch kernel of `acdf_core::simd` reads
+    /// them; `None` if their shape does not allow it.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn lane_grid(&self) -> Option<SharedGrid<'_>> {
+        SharedGrid::new(
+            &self.grid,
+            &self.conditional_pos,
+            &self.cdf,
+            self.count,
+            self.longest_conditional,
+            QF,
+        )
     }
 
     /// The shared conditional positions (φ_h grid indices).

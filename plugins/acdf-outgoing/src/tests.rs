@@ -477,7 +477,7 @@ fn slices_without_mass_stay_valid() {
     assert!((none.pdf(0, 0.3, 0.7, cells) - 1.0).abs() < 1e-4);
 }
 
-/// The lane searches of the shared grid (`shared/lanes.rs`) give the bits
+/// The lane kernels of the shared grid (`acdf_core::simd::shared_grid`) give the bits
 /// of the one-at-a-time draw and density: on slices with a ramp, no mass
 /// and a single spike, and on the built-in nickel at the default
 /// resolution (longer curves, several lane steps), for u at 0 and next to
@@ -486,8 +486,8 @@ fn slices_without_mass_stay_valid() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn lane_draws_and_densities_equal_single_ones() {
-    use crate::shared::{DrawInputs, DrawnPoints};
     use acdf_core::search::lanes::STAGE;
+    use acdf_core::simd::shared_grid::{DrawInputs, DrawnPoints};
     let Some(cpu) = acdf_core::cpu::avx2() else {
         println!("skipped: this CPU has no AVX2 and FMA (or ACDF_CPU=portable)");
         return;
@@ -562,7 +562,8 @@ fn lane_draws_and_densities_equal_single_ones() {
                 p: &mut p,
                 same: &mut same,
             };
-            assert!(g.sample_lanes(cpu, &input, *cells, CELL_MARGIN, out));
+            let lanes = g.lane_grid().expect("the arrays fit the lanes");
+            assert!(lanes.sample_lanes(cpu, &input, *cells, CELL_MARGIN, out));
             for l in 0..STAGE {
                 let u = Vec2::new(u_x[l], u_y[l]);
                 let (drawn, other, ux, w) = super::pick_slice(k[l] as usize, t[l], u);
@@ -601,7 +602,8 @@ fn lane_draws_and_densities_equal_single_ones() {
             let px: Vec<f32> = (0..STAGE).map(|l| pick(l, next())).collect();
             let py: Vec<f32> = (0..STAGE).map(|l| pick(l + 5, next())).collect();
             let mut blended = vec![0.0; STAGE];
-            assert!(g.density_lanes(cpu, &k, &t, &px, &py, *cells, &mut blended));
+            let lanes = g.lane_grid().expect("the arrays fit the lanes");
+            assert!(lanes.density_lanes(cpu, &k, &t, &px, &py, *cells, &mut blended));
             for l in 0..STAGE {
                 let mut want = 0.0;
                 if let (Some(cell), _) = g.locate(px[l], py[l], *cells, (0.0, 0.0)) {

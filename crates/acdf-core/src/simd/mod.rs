@@ -4,22 +4,28 @@
 //! - [`cpu`] detects the features once and hands out the [`Avx2`] token
 //!   that proves them;
 //! - [`dispatch!`](crate::dispatch!) is the one way the rest of acdf runs
-//!   code compiled for AVX2 and FMA: a caller passes its plain code as a
-//!   closure that takes `Option<Avx2>`, and gets it compiled twice, once for the target's
-//!   baseline (called with `None`) and once with AVX2 and FMA enabled
-//!   (called with the token, where the CPU has them);
-//! - [`search`], [`fast`] and the kernels below them are the vector forms of
-//!   the searches, trigonometry and batch draws, behind safe functions
-//!   that take the token.
+//!   code compiled for AVX2 and FMA: a caller names a plain function that
+//!   takes an `Option<Avx2>` last, and gets it compiled twice, once for the
+//!   target's baseline (called with `None`) and once with AVX2 and FMA
+//!   enabled (called with the token, where the CPU has them);
+//! - [`search`] and [`fast`] are the vector forms of the sorted-list
+//!   searches and of the many-angle sines and cosines;
+//! - the batch kernels of the samplers, behind safe functions that take
+//!   the token and plain views of the stored arrays:
+//!   [`shared_grid`] (the outgoing sampler's quantised slices);
+//! - [`clock`] reads the core clock for `acdf bench`.
 //!
 //! Every vector form computes the same IEEE operations in the same order as
 //! the plain code it stands for, with no fused multiply-add, so results do
 //! not depend on the path; the tests of each kernel, and the conformance
 //! crate's `portable` tests, compare the two bit for bit.
 
+pub mod clock;
 pub mod cpu;
 pub mod fast;
 pub mod search;
+#[cfg(target_arch = "x86_64")]
+pub mod shared_grid;
 
 pub use cpu::Avx2;
 

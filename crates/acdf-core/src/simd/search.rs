@@ -419,6 +419,96 @@ impl Guide {
     }
 }
 
+/// The entries of a window of 8- or 16-bit values compared at once by
+/// [`window_at_or_below_u16`] and [`window_at_or_below_u8`]: the
+/// quantised CDFs of the outgoing sampler.
+pub const NARROW_WINDOW: usize = 32;
+
+/// Bit l set where `window[l] <= key`, for 16-bit values.
+#[inline(always)]
+pub fn window_at_or_below_u16(window: &[u16; NARROW_WINDOW], key: u16) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        mask_u16_sse2(window, key)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        narrow_mask_portable(window, key)
+    }
+}
+
+/// Bit l set where `window[l] <= key`, for 8-bit values.
+#[inline(always)]
+pub fn window_at_or_below_u8(window: &[u8; NARROW_WINDOW], key: u8) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        mask_u8_sse2(window, key)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        narrow_mask_portable(window, key)
+    }
+}
+
+/// /// [`window_at_or_below_u16`] and [`window_at_or_below_u8`] one entry at a
+/// time: the form for CPUs other than x86-64, and the reference the tests
+/// hold the SSE2 forms to.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline(always)]
+fn narrow_mask_portable<P: Copy + PartialOrd>(window: &[P; NARROW_WINDOW], key: P) -> u32 {
+    window
+        .iter()
+        .enumerate()
+        .fold(0, |mask, (l, &p)| mask | ((p <= key) as u32) << l)
+}
+
+/// [`window_at_or_below_u16`] by SSE2 (the x86-64
+/// baseline): p <= key exactly when the saturating difference p - key is
+/// zero; the word compares are narrowed to bytes and read as bit masks.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn mask_u16_sse2(window: &[u16; NARROW_WINDOW], key: u16) -> u32 {
+    use std::arch::x86_64::{
+        __m128i, _mm_cmpeq_epi16, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16,
+        _mm_set1_epi16, _mm_setzero_si128, _mm_subs_epu16,
+    };
+    // SAFETY: SSE2 is part of the x86-64 baseline, and every load reads
+    // eight values inside `window` (offsets 0, 8, 16 and 24 of 32).
+    unsafe {
+        let k = _mm_set1_epi16(key as i16);
+        let zero = _mm_setzero_si128();
+        let at = |l: usize| {
+            let p = _mm_loadu_si128(window.as_ptr().add(l) as *const __m128i);
+            _mm_cmpeq_epi16(_mm_subs_epu16(p, k), zero)
+        };
+        // Each word lane is 0 or -1, which the saturating pack keeps.
+        let low = _mm_movemask_epi8(_mm_packs_epi16(at(0), at(8))) as u32;
+        let high = _mm_movemask_epi8(_mm_packs_epi16(at(16), at(24))) as u32;
+        low | high << 16
+    }
+}
+
+/// [`window_at_or_below_u8`] by SSE2, as [`mask_u16_sse2`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn mask_u8_sse2(window: &[u8; NARROW_WINDOW], key: u8) -> u32 {
+    use std::arch::x86_64::{
+        __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_movemask_epi8, _mm_set1_epi8,
+        _mm_setzero_si128, _mm_subs_epu8,
+    };
+    // SAFETY: SSE2 is part of the x86-64 baseline, and both loads read
+    // sixteen values inside `window` (offsets 0 and 16 of 32).
+    unsafe {
+        let k = _mm_set1_epi8(key as i8);
+        let zero = _mm_setzero_si128();
+        let at = |l: usize| {
+            let p = _mm_loadu_si128(window.as_ptr().add(l) as *const __m128i);
+            _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_subs_epu8(p, k), zero)) as u32
+        };
+        at(0) | at(16) << 16
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -610,6 +700,38 @@ mod tests {
             for v in probes(&list) {
                 let count = guide.count(&data, before, v, Guide::cell(v, cells));
                 prop_assert_eq!(count, plain(&list, v), "v {}", v);
+            }
+        }
+    }
+
+    /// The SSE2 masks of narrow windows are those of one compare per entry,
+    /// for sorted windows and keys at, just below and just above each entry
+    /// and at the ends of the type's range.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn narrow_masks_equal_the_portable_masks() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..20 {
+            let mut v: Vec<u32> = (0..NARROW_WINDOW)
+                .map(|_| {
+                    state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+                    ((state >> 33) % 65536) as u32
+                })
+                .collect();
+            v.sort_unstable();
+            let w16: [u16; NARROW_WINDOW] = std::array::from_fn(|l| v[l] as u16);
+            let w8: [u8; NARROW_WINDOW] = std::array::from_fn(|l| (v[l] >> 8) as u8);
+            let mut keys16: Vec<u16> = vec![0, 1, 0x7fff, 0x8000, 0xfffe, 0xffff];
+            let mut keys8: Vec<u8> = vec![0, 1, 0x7f, 0x80, 0xfe, 0xff];
+            for l in 0..NARROW_WINDOW {
+                keys16.extend([w16[l], w16[l].wrapping_sub(1), w16[l].wrapping_add(1)]);
+                keys8.extend([w8[l], w8[l].wrapping_sub(1), w8[l].wrapping_add(1)]);
+            }
+            for k in keys16 {
+                assert_eq!(mask_u16_sse2(&w16, k), narrow_mask_portable(&w16, k), "{k}");
+            }
+            for k in keys8 {
+                assert_eq!(mask_u8_sse2(&w8, k), narrow_mask_portable(&w8, k), "{k}");
             }
         }
     }

@@ -1,26 +1,100 @@
-//! The draws and densities of a stage of [`STAGE`](acdf_core::search::lanes::STAGE) lanes on the shared
-//! grid, in AVX2 lanes: what [`SharedSlices::sample`] and
-//! [`SharedSlices::locate`] with [`SharedSlices::density`] do one at a
-//! time, for the batch paths of the outgoing sampler (`batch.rs`).
+//! The batch draws and densities of the outgoing sampler's slices on a
+//! shared grid (`plugins/acdf-outgoing/src/shared.rs`), a stage of
+//! [`STAGE`](super::search::lanes::STAGE) lanes at a time in AVX2: what
+//! `SharedSlices::sample` and `SharedSlices::locate` with
+//! `SharedSlices::density` compute one at a time.
 //!
 //! Each lane searches its own slice's CDF values (a draw) or the shared
 //! positions (a density) by the binary lifting of
-//! [`acdf_core::search::narrow`], whose counts are those of the windows
-//! one draw at a time compares, and reads the two ends of each segment in
+//! [`search::narrow`](super::search::narrow), whose counts are those of a
+//! search one draw at a time, and reads the two ends of each segment in
 //! one gather. The floating-point operations are those of the scalar path
-//! in the same order, without fused multiply-adds, so every result is
-//! bit for bit the scalar one (`lane_draws_and_densities_equal_single_ones`
-//! in the tests of `outgoing`).
+//! in the same order, without fused multiply-adds, so every result is bit
+//! for bit the scalar one (`lane_draws_and_densities_equal_single_ones` in
+//! the outgoing plug-in's tests).
+//!
+//! The slices arrive as a [`SharedGrid`]: plain slices of the stored
+//! arrays, whose shape [`SharedGrid::new`] checks, so that every gather's
+//! index lies inside its array whatever the stored values are.
 
 #![allow(clippy::needless_range_loop)]
 
-use super::super::packed::QF;
-use super::SharedSlices;
-use acdf_core::cpu::Avx2;
-use acdf_core::search::lanes::GROUPS;
-use acdf_core::search::narrow::{count_at_or_below, first_step, Pairs};
-use acdf_core::ONE_MINUS_EPSILON;
+use super::cpu::Avx2;
+use super::search::lanes::GROUPS;
+use super::search::narrow::{count_at_or_below, first_step, Pairs};
+use crate::ONE_MINUS_EPSILON;
 use std::arch::x86_64::*;
+
+/// The stored arrays of the slices on one grid, as the lanes read them.
+///
+/// - `grid`: the m marginal positions (quantised θ_h), then m offsets:
+///   where each marginal segment's conditional starts among the
+///   conditional positions (the last offset, where they end);
+/// - `positions`: the conditional positions (quantised φ_h) one after
+///   another, and 3 entries of padding;
+/// - `cdf`: per slice `m + c` quantised CDF values (its marginal's, then
+///   its conditionals'), c the number of conditional positions, and 1
+///   entry of padding;
+/// - `quantum`: the value a CDF ends at, which a u in [0, 1) is scaled to.
+#[derive(Clone, Copy)]
+pub struct SharedGrid<'a> {
+    grid: &'a [u16],
+    m: usize,
+    positions: &'a [u8],
+    cdf: &'a [u16],
+    stride: usize,
+    count: usize,
+    longest_conditional: usize,
+    quantum: f32,
+}
+
+impl<'a> SharedGrid<'a> {
+    /// The arrays of `count` slices, whose longest conditional has
+    /// `longest_conditional + 1` vertices, or `None` where their shape
+    /// does not allow the lanes to read them: fewer than 2 marginal
+    /// positions or 1 slice, an offset past the conditional positions,
+    /// lengths that do not match [`SharedGrid`]'s layout, or arrays too long
+    /// for 32-bit lanes. Values are not checked, nor is
+    /// `longest_conditional`: arrays that do not hold valid slices give
+    /// meaningless draws, never a read outside them.
+    #[inline(always)]
+    pub fn new(
+        grid: &'a [u16],
+        positions: &'a [u8],
+        cdf: &'a [u16],
+        count: usize,
+        longest_conditional: usize,
+        quantum: f32,
+    ) -> Option<Self> {
+        let m = grid.len() / 2;
+        if m < 2 || grid.len() != 2 * m || count == 0 || positions.len() < 3 {
+            return None;
+        }
+        let c = positions.len() - 3;
+        // The largest offset by a fold without an early exit, which
+        // compiles to a few vector compares.
+        let largest = grid[m..]
+            .iter()
+            .fold(0, |largest, &offset| largest.max(offset));
+        if usize::from(largest) > c {
+            return None;
+        }
+        let stride = m + c;
+        if cdf.len() != count.checked_mul(stride)?.checked_add(1)? {
+            return None;
+        }
+        Some(SharedGrid {
+            grid,
+            m,
+            positions,
+            cdf,
+            stride,
+            count,
+            longest_conditional,
+            quantum,
+        })
+    }
+}
 
 /// What a stage of draws starts from, one entry per lane: the blend of
 /// wo, (1 - t) slice k + t slice k + 1, and u in [0, 1)^2, whose u.x
@@ -92,9 +166,9 @@ fn store_i(_: Avx2, g: usize, v: __m256i, out: &mut [i32]) {
     unsafe { _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, v) }
 }
 
-impl SharedSlices {
+impl<'a> SharedGrid<'a> {
     #[inline(always)]
-    fn sources(&self, cpu: Avx2) -> Option<Sources<'_>> {
+    fn sources(&self, cpu: Avx2) -> Option<Sources<'a>> {
         // SAFETY: the token proves the CPU has AVX2.
         let (stride, m, last_slice) = unsafe {
             (
@@ -106,7 +180,7 @@ impl SharedSlices {
         Some(Sources {
             cpu,
             grid: Pairs::new(&self.grid)?,
-            positions: Pairs::new(&self.conditional_pos)?,
+            positions: Pairs::new(&self.positions)?,
             cdf: Pairs::new(&self.cdf)?,
             stride,
             m,
@@ -115,15 +189,14 @@ impl SharedSlices {
     }
 
     /// The table draws of the outgoing sampler (its `table_point`) for
-    /// the [`STAGE`](acdf_core::search::lanes::STAGE) lanes of `input`: the
-    /// slice picked from the blend, [`sample`](Self::sample) of it, and
+    /// the [`STAGE`](super::search::lanes::STAGE) lanes of `input`: the
+    /// slice picked from the blend, its draw (`SharedSlices::sample`), and
     /// the blended density w_drawn d_drawn + (1 - w_drawn) d_other of the
     /// drawn cell (the other term only where its weight is positive).
     /// Returns false, writing nothing, if the arrays cannot be read by
-    /// lanes. Slice indices are clamped into [0, [`len`](Self::len)), and
-    /// the slices must be valid ([`validate`](Self::validate)). Panics if
+    /// lanes. Slice indices are clamped into [0, count). Panics if
     /// a slice of `input` or `out` holds fewer than
-    /// [`STAGE`](acdf_core::search::lanes::STAGE) lanes.
+    /// [`STAGE`](super::search::lanes::STAGE) lanes.
     #[inline(always)]
     pub fn sample_lanes(
         &self,
@@ -139,7 +212,8 @@ impl SharedSlices {
         let (n_x, n_y) = n;
         let m = self.m as i32;
         // SAFETY: the token proves the CPU has AVX2. Every gather index
-        // is derived from what `validate` checked: a slice's values start
+        // is derived from the shape `SharedGrid::new` checked (every offset
+        // at most the count c of conditional positions): a slice's values start
         // at s * stride with s clamped into [0, count), its marginal
         // search reads its values 1..m - 1, the pair at j <= m - 2 ends at
         // m - 1; the offsets pair at m + j ends at 2m - 1, inside the
@@ -154,7 +228,7 @@ impl SharedSlices {
             let one = _mm256_set1_epi32(1);
             let zero_i = _mm256_setzero_si256();
             let m_v = src.m;
-            let qf = _mm256_set1_ps(QF);
+            let qf = _mm256_set1_ps(self.quantum);
             let zero = _mm256_setzero_ps();
             let one_f = _mm256_set1_ps(1.0);
             let half = _mm256_set1_ps(0.5);
@@ -229,7 +303,7 @@ impl SharedSlices {
                 first_step(self.longest_conditional),
             );
             let nn = _mm256_set1_ps(n_x * n_y);
-            let qq = _mm256_set1_ps(QF * QF);
+            let qq = _mm256_set1_ps(self.quantum * self.quantum);
             let (mx, my) = (
                 _mm256_set1_ps(margin.0 * n_x),
                 _mm256_set1_ps(margin.1 * n_y),
@@ -270,14 +344,14 @@ impl SharedSlices {
         true
     }
 
-    /// For the [`STAGE`](acdf_core::search::lanes::STAGE) lanes of points (x, y) in [0, 1)^2 (or anything,
+    /// For the [`STAGE`](super::search::lanes::STAGE) lanes of points (x, y) in [0, 1)^2 (or anything,
     /// for lanes whose result is dropped), the blended density
     /// (1 - t) d_k + t d_{k+1} (each term only where its weight is
     /// positive; 0 where no slice has mass), as
-    /// [`locate`](Self::locate) and [`density`](Self::density) find it one
+    /// `SharedSlices::locate` and `SharedSlices::density` find it one
     /// at a time. `k + 1` is read only where `t > 0`; slice indices are
-    /// clamped into [0, [`len`](Self::len)), and the slices must be valid.
-    /// Panics if a slice holds fewer than [`STAGE`](acdf_core::search::lanes::STAGE) lanes. Returns
+    /// clamped into [0, count).
+    /// Panics if a slice holds fewer than [`STAGE`](super::search::lanes::STAGE) lanes. Returns
     /// false, writing nothing, if the arrays cannot be read by lanes.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
@@ -343,7 +417,7 @@ impl SharedSlices {
                 first_step(self.longest_conditional),
             );
             let nn = _mm256_set1_ps(n_x * n_y);
-            let qq = _mm256_set1_ps(QF * QF);
+            let qq = _mm256_set1_ps(self.quantum * self.quantum);
             for g in 0..GROUPS {
                 let at = _mm256_add_epi32(a[g], i[g]);
                 let (p0, p1) = src.grid.gather(cpu, j[g]);
@@ -457,7 +531,7 @@ unsafe fn inside(t: __m256, margin: __m256, (p0, p1): (__m256, __m256)) -> __m25
 }
 
 /// Slice s's density in the cell of marginal segment j and conditional
-/// vertex `at`, whose scale is `scale`, as [`SharedSlices::density`].
+/// vertex `at`, whose scale is `scale`, as `SharedSlices::density`.
 ///
 /// # Safety
 /// AVX2; every s is below the slices' count and (j, at) a cell of the
