@@ -138,6 +138,7 @@ macro_rules! dispatch {
 macro_rules! instances {
     ($name:ident, $($arg:ident: $ty:ident),*) => {
         #[doc(hidden)]
+        #[allow(clippy::too_many_arguments)]
         #[inline(always)]
         pub fn $name<$($ty,)* R>(
             kernel: impl FnOnce($($ty,)* Option<Avx2>) -> R,
@@ -145,6 +146,7 @@ macro_rules! instances {
         ) -> R {
             #[cfg(target_arch = "x86_64")]
             if let Some(cpu) = cpu::avx2() {
+                #[allow(clippy::too_many_arguments)]
                 #[target_feature(enable = "avx2,fma,popcnt")]
                 fn compiled<$($ty,)* R>(
                     cpu: Avx2,
@@ -158,6 +160,7 @@ macro_rules! instances {
                 // POPCNT beside them).
                 return unsafe { compiled(cpu, kernel, $($arg),*) };
             }
+            #[allow(clippy::too_many_arguments)]
             #[inline(never)]
             fn portable<$($ty,)* R>(
                 kernel: impl FnOnce($($ty,)* Option<Avx2>) -> R,

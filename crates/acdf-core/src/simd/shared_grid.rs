@@ -179,9 +179,9 @@ impl<'a> SharedGrid<'a> {
         };
         Some(Sources {
             cpu,
-            grid: Pairs::new(&self.grid)?,
-            positions: Pairs::new(&self.positions)?,
-            cdf: Pairs::new(&self.cdf)?,
+            grid: Pairs::new(self.grid)?,
+            positions: Pairs::new(self.positions)?,
+            cdf: Pairs::new(self.cdf)?,
             stride,
             m,
             last_slice,
