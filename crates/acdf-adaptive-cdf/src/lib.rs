@@ -41,6 +41,7 @@ mod curve;
 pub mod dist;
 pub mod packed_env;
 pub mod persist;
+pub mod quantised;
 pub mod simplify;
 
 pub use builder::AdaptiveBuilder;

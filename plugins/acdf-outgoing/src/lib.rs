@@ -76,13 +76,10 @@
 
 pub mod anisotropic;
 mod batch;
-mod packed;
 pub mod persist;
-mod shared;
 
+pub use acdf_adaptive_cdf::quantised::{GridCell, GridDraw, PackedCdf2D, SharedSlices};
 pub use anisotropic::AnisotropicOutgoingSampler;
-pub use packed::PackedCdf2D;
-pub use shared::{GridCell, GridDraw, SharedSlices};
 
 use acdf_adaptive_cdf::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
 use acdf_core::fast::{fast_atan2, sin_cos_turns};

@@ -1,5 +1,5 @@
 //! The batch draws and densities of the outgoing sampler's slices on a
-//! shared grid (`plugins/acdf-outgoing/src/shared.rs`), a stage of
+//! shared grid (`acdf_adaptive_cdf::quantised::SharedSlices`), a stage of
 //! [`STAGE`](super::search::lanes::STAGE) lanes at a time in AVX2: what
 //! `SharedSlices::sample` and `SharedSlices::locate` with
 //! `SharedSlices::density` compute one at a time.

@@ -25,8 +25,8 @@ use super::packed::{
     check_curve, check_offsets, conditional_masses, count_at_or_below, grid_indices, quantise,
     Curve, Segment, Stored, Q, QF,
 };
-use acdf_adaptive_cdf::simplify::Simplifier;
-use acdf_adaptive_cdf::AdaptiveCdf2D;
+use crate::simplify::Simplifier;
+use crate::AdaptiveCdf2D;
 #[cfg(target_arch = "x86_64")]
 use acdf_core::simd::shared_grid::SharedGrid;
 use acdf_core::{Error, Result};
@@ -254,7 +254,7 @@ impl SharedSlices {
     /// [`validate`](Self::validate) before use): the marginal positions,
     /// the offsets, the conditional positions, and per slice its marginal
     /// then conditional CDF values.
-    pub(crate) fn from_arrays(
+    pub fn from_arrays(
         marginal_pos: &[u16],
         offsets: &[u16],
         conditional_pos: Vec<u8>,

@@ -2,13 +2,14 @@
 //! [`AdaptiveCdf2D`]'s kept vertices as grid indices (16 bits along θ_h, 8
 //! along φ_h) and 16-bit CDF values, sampled and evaluated in that form.
 
-use acdf_adaptive_cdf::AdaptiveCdf2D;
+use crate::AdaptiveCdf2D;
 use acdf_core::{Error, Result};
 
 /// The largest quantised CDF value: a CDF value c is stored as
 /// round(c · 65535).
-pub(crate) const Q: u16 = u16::MAX;
-pub(super) const QF: f32 = Q as f32;
+pub const Q: u16 = u16::MAX;
+/// [`Q`] as a float, the scale of a u in [0, 1) on the stored values.
+pub const QF: f32 = Q as f32;
 
 /// A point of a [`PackedCdf2D`], its density, and whether the density is
 /// the same over a box around it.
@@ -50,12 +51,12 @@ pub struct PackedCdf2D {
 
 /// The entries compared at once by [`count_at_or_below`]: 32 lanes of 16
 /// or 8 bits, four or two SSE2 compares.
-pub(crate) const LANES: usize = acdf_core::search::NARROW_WINDOW;
+pub const LANES: usize = acdf_core::search::NARROW_WINDOW;
 
 /// A stored vertex position or CDF value: an unsigned integer that
 /// counts the stored values at or below a point in 16-bit or 8-bit
 /// lanes.
-pub(crate) trait Stored: Copy {
+pub trait Stored: Copy {
     /// The value as a float.
     fn float(self) -> f32;
     /// The key of a point t >= 0 in the values' units: floor(t), clamped to
@@ -118,7 +119,7 @@ impl Stored for u8 {
 /// draw are a few compares with no loop over the vertices. A `data`
 /// shorter than a window is counted one entry at a time.
 #[inline(always)]
-pub(crate) fn count_at_or_below<P: Stored>(data: &[P], start: usize, len: usize, key: P) -> usize {
+pub fn count_at_or_below<P: Stored>(data: &[P], start: usize, len: usize, key: P) -> usize {
     if data.len() < LANES {
         return data[start..start + len]
             .iter()
@@ -164,12 +165,12 @@ pub(crate) fn count_at_or_below<P: Stored>(data: &[P], start: usize, len: usize,
 /// One curve of a slice: `len` positions from `pos` in `pos_data` and as
 /// many CDF values from `cdf` in `cdf_data`.
 #[derive(Clone, Copy)]
-pub(super) struct Curve<'a, P> {
-    pub(super) pos_data: &'a [P],
-    pub(super) pos: usize,
-    pub(super) cdf_data: &'a [u16],
-    pub(super) cdf: usize,
-    pub(super) len: usize,
+pub struct Curve<'a, P> {
+    pub pos_data: &'a [P],
+    pub pos: usize,
+    pub cdf_data: &'a [u16],
+    pub cdf: usize,
+    pub len: usize,
 }
 
 impl<P: Stored> Curve<'_, P> {
@@ -193,7 +194,7 @@ impl<P: Stored> Curve<'_, P> {
     /// density). The segment is the last vertex whose CDF is at or below u
     /// (zero-mass segments are never chosen).
     #[inline(always)]
-    pub(super) fn sample(&self, n: f32, u: f32) -> (f32, usize, Segment) {
+    pub fn sample(&self, n: f32, u: f32) -> (f32, usize, Segment) {
         let us = u * QF;
         let j = count_at_or_below(self.cdf_data, self.cdf + 1, self.len - 2, u16::key(us));
         let s = Segment::new(self.segment(j));
@@ -210,9 +211,9 @@ impl<P: Stored> Curve<'_, P> {
 
 /// One segment of a curve: its end positions (grid units) and CDF values.
 #[derive(Clone, Copy)]
-pub(super) struct Segment {
-    pub(super) p: (f32, f32),
-    pub(super) c: (u16, u16),
+pub struct Segment {
+    pub p: (f32, f32),
+    pub c: (u16, u16),
 }
 
 impl Segment {
@@ -223,7 +224,7 @@ impl Segment {
 
     /// The density over [0, 1) of a curve over `n` cells.
     #[inline(always)]
-    pub(super) fn density(&self, n: f32) -> f32 {
+    pub fn density(&self, n: f32) -> f32 {
         let mass = (self.c.1 - self.c.0) as f32;
         let width = self.p.1 - self.p.0;
         (mass * n) / (width * QF)
@@ -232,7 +233,7 @@ impl Segment {
     /// Whether [t - margin, t + margin] lies inside the segment (all in
     /// grid units).
     #[inline(always)]
-    pub(super) fn inside(&self, t: f32, margin: f32) -> bool {
+    pub fn inside(&self, t: f32, margin: f32) -> bool {
         (self.p.0 <= t - margin) & (t + margin < self.p.1)
     }
 }
@@ -310,7 +311,7 @@ impl PackedCdf2D {
 
     /// A slice of its five arrays, as a decoder reads them (check it with
     /// [`validate`](Self::validate) before use).
-    pub(crate) fn from_arrays(
+    pub fn from_arrays(
         marginal_pos: &[u16],
         marginal_cdf: &[u16],
         offsets: &[u16],
@@ -482,12 +483,7 @@ impl PackedCdf2D {
 /// The masses of the table `values` (rows of `n_x`) in rows `rows.0` to
 /// `rows.1` (a marginal segment) between consecutive conditional
 /// positions `pos` (grid indices along x), summed in f64.
-pub(super) fn conditional_masses(
-    values: &[f32],
-    n_x: usize,
-    rows: (u16, u16),
-    pos: &[u16],
-) -> Vec<f64> {
+pub fn conditional_masses(values: &[f32], n_x: usize, rows: (u16, u16), pos: &[u16]) -> Vec<f64> {
     let mut columns = vec![0.0f64; n_x];
     for row in values[rows.0 as usize * n_x..rows.1 as usize * n_x].chunks_exact(n_x) {
         for (c, &v) in columns.iter_mut().zip(row) {
@@ -502,7 +498,7 @@ pub(super) fn conditional_masses(
 /// Check the offsets of `m` marginal vertices into `conditionals`
 /// conditional vertices: one per vertex, from 0, never decreasing, and
 /// ending where the conditionals end.
-pub(super) fn check_offsets(
+pub fn check_offsets(
     offsets: &[u16],
     m: usize,
     conditionals: usize,
@@ -525,7 +521,7 @@ pub(super) fn check_offsets(
     Ok(())
 }
 
-pub(super) fn check_curve<P: Stored + PartialOrd>(
+pub fn check_curve<P: Stored + PartialOrd>(
     what: &str,
     pos: &[P],
     cdf: &[u16],
@@ -552,7 +548,7 @@ pub(super) fn check_curve<P: Stored + PartialOrd>(
 
 /// Grid indices of positions k / n (exact for the vertices a simplifier
 /// keeps of a tabulated CDF).
-pub(super) fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
+pub fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
     xs.iter()
         .map(|&x| {
             let t = x as f64 * n as f64;
@@ -570,9 +566,9 @@ pub(super) fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
 }
 
 /// Quantised CDF values (0 to 65535) of segments with these masses (not all
-/// zero): [`acdf_adaptive_cdf::packed_env::quantise`] at q = 65535.
-pub(crate) fn quantise(masses: &[f64]) -> Vec<u16> {
-    acdf_adaptive_cdf::packed_env::quantise(masses, Q as u32)
+/// zero): [`crate::packed_env::quantise`] at q = 65535.
+pub fn quantise(masses: &[f64]) -> Vec<u16> {
+    crate::packed_env::quantise(masses, Q as u32)
         .into_iter()
         .map(|v| v as u16)
         .collect()
