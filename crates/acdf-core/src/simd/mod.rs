@@ -13,6 +13,8 @@
 //! - the batch kernels of the samplers, behind safe functions that take
 //!   the token and plain views of the stored arrays:
 //!   [`shared_grid`] (the outgoing sampler's quantised slices);
+//!   [`piecewise_constant`] (the uniform plug-in's piecewise-constant
+//!   tables);
 //! - [`clock`] reads the core clock for `acdf bench`.
 //!
 //! Every vector form computes the same IEEE operations in the same order as
@@ -23,6 +25,7 @@
 pub mod clock;
 pub mod cpu;
 pub mod fast;
+pub mod piecewise_constant;
 pub mod search;
 #[cfg(target_arch = "x86_64")]
 pub mod shared_grid;
