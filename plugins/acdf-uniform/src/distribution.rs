@@ -23,11 +23,12 @@
 //! a single 8-wide SIMD compare;
 //! a 2D conditional of up to 64 cells is counted by comparing every entry.
 //! Both give exactly the cell of a binary search, so the mapping from u to
-//! x stays monotone. Where the CPU has AVX2, `sample_batch` and `pdf_batch`
-//! run in SIMD lanes instead (`distribution/gather.rs`: 32 draws per stage,
-//! both searches by binary lifting with gathers); elsewhere `sample_batch`
-//! runs sixteen draws in scalar stages. Both return exactly what `sample`
-//! and `pdf` return.
+//! x stays monotone. Where the CPU has AVX2, the batch forms run in SIMD
+//! lanes instead, by the kernels of [`acdf_core::simd::piecewise_constant`]
+//! (32 draws per stage, both searches by binary lifting with gathers), which
+//! read the same CDFs through a plain view of them; elsewhere
+//! `sample_batch` runs sixteen draws in scalar stages. Both return exactly
+//! what `sample` and `pdf` return.
 //!
 //! **All-zero input.** A table (or a row of a 2D table) that sums to zero
 //! falls back to the uniform density; `integral()` then reports 0. In a 2D
@@ -36,6 +37,10 @@
 
 use acdf_core::fast::grid_cell;
 use acdf_core::search::{self, count_linear, count_sorted, LINEAR_ROW, SHORT_WINDOW};
+#[cfg(target_arch = "x86_64")]
+use acdf_core::simd::piecewise_constant;
+use acdf_core::simd::piecewise_constant::{Table1D, Table2D, STAGE};
+use acdf_core::simd::Avx2;
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
     Vec2, ONE_MINUS_EPSILON,
@@ -356,6 +361,12 @@ impl PiecewiseConstant1D {
         (0..self.count()).map(|k| self.cell_pdf(k)).collect()
     }
 
+    /// The CDF as the SIMD kernels read it.
+    #[inline(always)]
+    fn table(&self) -> Option<Table1D<'_>> {
+        Table1D::new(&self.cdf)
+    }
+
     /// The sample for a clamped `u` once its cell k is known.
     #[inline(always)]
     fn finish(&self, k: usize, u: f32) -> Sample1D {
@@ -406,20 +417,25 @@ impl Distribution1D for PiecewiseConstant1D {
     }
 
     /// The same samples as [`sample`](Distribution1D::sample): where the CPU
-    /// has AVX2, 32 at a time in SIMD lanes (`distribution/gather.rs`);
-    /// elsewhere one at a time (the guided search has no loop-carried
-    /// dependence, so the out-of-order core overlaps consecutive draws).
+    /// has AVX2, 32 at a time in SIMD lanes
+    /// ([`piecewise_constant::sample_batch_1d`]); the rest one at a time
+    /// (the guided search has no loop-carried dependence, so the
+    /// out-of-order core overlaps consecutive draws).
     fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            if let Some(cdf) = self.lane_list() {
-                // SAFETY: the token proves the CPU has AVX2, the one
-                // requirement of the function's target features.
-                unsafe { self.sample_batch_gather(cpu, cdf, u, out) };
-                return;
-            }
-        }
-        for (o, &u) in out.iter_mut().zip(u) {
+        acdf_core::dispatch!(Self::sample_batch_one, self, u, out)
+    }
+}
+
+impl PiecewiseConstant1D {
+    /// [`Distribution1D::sample_batch`] itself.
+    #[inline(always)]
+    fn sample_batch_one(&self, u: &[f32], out: &mut [Sample1D], cpu: Option<Avx2>) {
+        let done = match (cpu, self.table()) {
+            #[cfg(target_arch = "x86_64")]
+            (Some(cpu), Some(t)) => piecewise_constant::sample_batch_1d(cpu, &t, u, out),
+            _ => 0,
+        };
+        for (o, &u) in out[done..].iter_mut().zip(&u[done..]) {
             *o = self.sample(u);
         }
     }
@@ -724,20 +740,9 @@ impl Distribution2D for PiecewiseConstant2D {
 
     /// The same densities as [`pdf`](Distribution2D::pdf), bit for bit:
     /// where the CPU has AVX2, eight points at a time in SIMD lanes
-    /// (`distribution/gather.rs`), elsewhere one at a time.
+    /// ([`piecewise_constant::pdf_batch`]); the rest one at a time.
     fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            if self.fits_pdf_lanes() {
-                // SAFETY: the token proves the CPU has AVX2, and the table
-                // fits the lanes.
-                unsafe { self.pdf_batch_gather(cpu, p, out) };
-                return;
-            }
-        }
-        for (o, &p) in out.iter_mut().zip(p) {
-            *o = self.pdf(p);
-        }
+        acdf_core::dispatch!(Self::pdf_batch_one, self, p, out)
     }
 
     /// p(x, y) of the cell (floor(x nx), floor(y ny)); 0 outside [0, 1)^2.
@@ -772,23 +777,52 @@ impl Distribution2D for PiecewiseConstant2D {
     }
 
     /// The same samples as [`sample`](Distribution2D::sample): where the CPU
-    /// has AVX2, 32 draws at a time in SIMD lanes (`distribution/gather.rs`),
-    /// elsewhere sixteen at a time in scalar stages (`sample_batch_lanes`).
+    /// has AVX2, 32 draws at a time in SIMD lanes
+    /// ([`piecewise_constant::sample_batch`]); the rest sixteen at a time
+    /// in scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            if self.fits_lanes() {
-                // SAFETY: the token proves the CPU has AVX2, and the table
-                // fits the lanes.
-                unsafe { self.sample_batch_gather(cpu, u, out) };
-                return;
-            }
-        }
-        self.sample_batch_lanes(u, out);
+        acdf_core::dispatch!(Self::sample_batch_one, self, u, out)
     }
 }
 
 impl PiecewiseConstant2D {
+    /// [`Distribution2D::sample_batch`] itself.
+    #[inline(always)]
+    fn sample_batch_one(&self, u: &[Vec2], out: &mut [Sample2D], cpu: Option<Avx2>) {
+        let done = match (cpu, self.table()) {
+            #[cfg(target_arch = "x86_64")]
+            (Some(cpu), Some(t)) => piecewise_constant::sample_batch(cpu, &t, u, out),
+            _ => 0,
+        };
+        self.sample_batch_lanes(&u[done..], &mut out[done..]);
+    }
+
+    /// [`Distribution2D::pdf_batch`] itself.
+    #[inline(always)]
+    fn pdf_batch_one(&self, p: &[Vec2], out: &mut [f32], cpu: Option<Avx2>) {
+        let done = match (cpu, self.table()) {
+            #[cfg(target_arch = "x86_64")]
+            (Some(cpu), Some(t)) => piecewise_constant::pdf_batch(cpu, &t, p, out),
+            _ => 0,
+        };
+        for (o, &p) in out[done..].iter_mut().zip(&p[done..]) {
+            *o = self.pdf(p);
+        }
+    }
+
+    /// The CDFs as the SIMD kernels read them.
+    #[inline(always)]
+    fn table(&self) -> Option<Table2D<'_>> {
+        Table2D::new(&self.marginal, &self.conditional, self.nx, self.ny)
+    }
+
+    /// The marginal and the conditional CDFs, a lane's table in the SIMD
+    /// kernels of one table per lane.
+    #[inline(always)]
+    fn cdfs(&self) -> (&[f32], &[f32]) {
+        (&self.marginal, &self.conditional)
+    }
+
     /// The same samples as [`sample`](Distribution2D::sample), sixteen draws
     /// at a time in stages (rows, then columns, then positions), so that
     /// the out-of-order core sees sixteen independent chains of loads at each
@@ -905,21 +939,15 @@ impl SliceDistribution for PiecewiseConstant2D {
     /// Draw `u[k]` from `dists[k]` for every k: the slices of a batch of
     /// shading points, each with its own outgoing direction. The same
     /// samples as [`sample`](Distribution2D::sample) of each. Where the CPU
-    /// has AVX2, 32 draws at a time in SIMD lanes, each lane reading its own
-    /// slice (`distribution/gather.rs`); elsewhere in scalar stages of
-    /// sixteen (rows, then columns, then positions). Either way the loads of
-    /// different slices, which are rarely in the nearest cache, overlap.
+    /// has AVX2, a stage of 32 slices of one shape is drawn in SIMD lanes,
+    /// each lane reading its own slice ([`piecewise_constant::sample_each`]);
+    /// other stages in scalar stages of sixteen (rows, then columns, then
+    /// positions). Either way the loads of different slices, which are
+    /// rarely in the nearest cache, overlap.
     fn sample_each(dists: &[&Self], u: &[Vec2], out: &mut [Sample2D]) {
         let len = dists.len().min(u.len()).min(out.len());
         let (dists, u, out) = (&dists[..len], &u[..len], &mut out[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2, the one requirement
-            // of the function's target features.
-            unsafe { Self::sample_each_gather::<false>(cpu, dists, u, Vec2::ZERO, out, &mut []) };
-            return;
-        }
-        Self::sample_each_lanes(dists, u, out);
+        acdf_core::dispatch!(Self::sample_each_one, dists, u, out)
     }
 
     /// Whether the box of half-width `margin` around p, a point of
@@ -933,7 +961,7 @@ impl SliceDistribution for PiecewiseConstant2D {
     /// [`sample_each`](Self::sample_each) and, into `same`,
     /// [`same_cell_around`](Self::same_cell_around) of every sample in its
     /// own slice. Where the CPU has AVX2 the box tests run in the lanes of
-    /// the draws.
+    /// the draws ([`piecewise_constant::sample_each_and_same_cell`]).
     fn sample_each_and_same_cell(
         dists: &[&Self],
         u: &[Vec2],
@@ -943,37 +971,95 @@ impl SliceDistribution for PiecewiseConstant2D {
     ) {
         let len = dists.len().min(u.len()).min(out.len()).min(same.len());
         let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2, the one requirement
-            // of the function's target features.
-            unsafe { Self::sample_each_gather::<true>(cpu, dists, u, margin, out, same) };
-            return;
-        }
-        Self::sample_each_lanes(dists, u, out);
-        Self::same_cells(dists, margin, out, same);
+        acdf_core::dispatch!(
+            Self::sample_each_and_same_cell_one,
+            dists,
+            u,
+            margin,
+            out,
+            same
+        )
     }
 
     /// `dists[k].pdf(p[k])` for every k, bit for bit: the slices of a batch
-    /// of shading points. Where the CPU has AVX2, eight at a time in SIMD
-    /// lanes, each lane reading its own slice; elsewhere one at a time.
+    /// of shading points. Where the CPU has AVX2, a stage of 32 slices of
+    /// one shape is looked up in SIMD lanes, each lane reading its own slice
+    /// ([`piecewise_constant::pdf_each`]); other stages one at a time.
     fn pdf_each(dists: &[&Self], p: &[Vec2], out: &mut [f32]) {
         let len = dists.len().min(p.len()).min(out.len());
         let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2, the one requirement
-            // of the function's target features.
-            unsafe { Self::pdf_each_gather(cpu, dists, p, out) };
-            return;
-        }
-        for ((o, d), &p) in out.iter_mut().zip(dists).zip(p) {
-            *o = d.pdf(p);
-        }
+        acdf_core::dispatch!(Self::pdf_each_one, dists, p, out)
     }
 }
 
 impl PiecewiseConstant2D {
+    /// [`SliceDistribution::sample_each`] itself, a stage of [`STAGE`]
+    /// draws at a time.
+    #[inline(always)]
+    fn sample_each_one(dists: &[&Self], u: &[Vec2], out: &mut [Sample2D], cpu: Option<Avx2>) {
+        let stages = dists.chunks(STAGE).zip(u.chunks(STAGE));
+        for ((dists, u), out) in stages.zip(out.chunks_mut(STAGE)) {
+            let tables = dists.iter().map(|d| d.cdfs());
+            let in_lanes = match cpu {
+                #[cfg(target_arch = "x86_64")]
+                Some(cpu) => piecewise_constant::sample_each(cpu, tables, u, out),
+                _ => false,
+            };
+            if !in_lanes {
+                Self::sample_each_lanes(dists, u, out);
+            }
+        }
+    }
+
+    /// [`SliceDistribution::sample_each_and_same_cell`] itself, a stage of
+    /// [`STAGE`] draws at a time.
+    #[inline(always)]
+    fn sample_each_and_same_cell_one(
+        dists: &[&Self],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+        cpu: Option<Avx2>,
+    ) {
+        let stages = dists.chunks(STAGE).zip(u.chunks(STAGE));
+        let outputs = out.chunks_mut(STAGE).zip(same.chunks_mut(STAGE));
+        for ((dists, u), (out, same)) in stages.zip(outputs) {
+            let tables = dists.iter().map(|d| d.cdfs());
+            let in_lanes = match cpu {
+                #[cfg(target_arch = "x86_64")]
+                Some(cpu) => {
+                    piecewise_constant::sample_each_and_same_cell(cpu, tables, u, margin, out, same)
+                }
+                _ => false,
+            };
+            if !in_lanes {
+                Self::sample_each_lanes(dists, u, out);
+                Self::same_cells(dists, margin, out, same);
+            }
+        }
+    }
+
+    /// [`SliceDistribution::pdf_each`] itself, a stage of [`STAGE`]
+    /// densities at a time.
+    #[inline(always)]
+    fn pdf_each_one(dists: &[&Self], p: &[Vec2], out: &mut [f32], cpu: Option<Avx2>) {
+        let stages = dists.chunks(STAGE).zip(p.chunks(STAGE));
+        for ((dists, p), out) in stages.zip(out.chunks_mut(STAGE)) {
+            let tables = dists.iter().map(|d| d.cdfs());
+            let in_lanes = match cpu {
+                #[cfg(target_arch = "x86_64")]
+                Some(cpu) => piecewise_constant::pdf_each(cpu, tables, p, out),
+                _ => false,
+            };
+            if !in_lanes {
+                for ((o, d), &p) in out.iter_mut().zip(dists).zip(p) {
+                    *o = d.pdf(p);
+                }
+            }
+        }
+    }
+
     /// The box tests of drawn samples, one at a time.
     fn same_cells(
         dists: &[&PiecewiseConstant2D],
@@ -1040,8 +1126,6 @@ fn inside_cell(x: f32, n: usize, m: f32) -> bool {
 /// throughput of the 256x32 slice, and 32 gained nothing more.
 const LANES: usize = 16;
 
-#[cfg(target_arch = "x86_64")]
-mod gather;
 mod persist;
 #[cfg(test)]
 mod tests;

@@ -15,7 +15,7 @@
 // `!(x > 0.0)` is how this crate says "not positive, or NaN": the negated
 // comparison is the point, since NaN must take the rejecting branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
-#![deny(unsafe_op_in_unsafe_fn)]
+#![forbid(unsafe_code)]
 
 pub mod builder;
 pub mod distribution;
