@@ -17,7 +17,7 @@ use clap::Args;
 #[derive(Args, Debug, Clone)]
 pub struct EnvSamplerArgs {
     /// Simplifier tolerance of the adaptive and oriented samplers (default:
-    /// the simplifier's own; 0.02 for chi2).
+    /// the simplifier's own; 0.005 for chi2).
     #[arg(long, value_name = "X")]
     pub tolerance: Option<f64>,
     /// The oriented sampler's cells of normals, ROWSxCOLUMNS (equal area:

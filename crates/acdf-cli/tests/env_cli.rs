@@ -227,6 +227,20 @@ fn bad_maps_and_names_are_one_line_errors() {
     assert_one_line_error(&o, "normal cells");
 }
 
+/// The help states the default chi2 tolerance the registry uses.
+#[test]
+fn the_help_states_the_default_chi2_tolerance() {
+    let default = format!("{} for chi2", acdf::env_registry::ENV_CHI2_TOLERANCE);
+    for sub in ["env-sample", "env-pdf", "env-report"] {
+        let help = text(&acdf(&[sub, "--help"]).stdout).replace(char::is_whitespace, " ");
+        let help = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        assert!(
+            help.contains(&default),
+            "`acdf {sub} --help` lacks `{default}`"
+        );
+    }
+}
+
 /// Every family of the table, and every `FAMILY:SIMPLIFIER`, is in the help
 /// of the three subcommands.
 #[test]

@@ -479,6 +479,8 @@ fn monte_carlo(
 /// since the first call elsewhere. A thread that waits for a core (other
 /// processes on a shared machine) does not advance its CPU clock, so a
 /// timing read from it does not depend on how busy the machine is.
+// The crate's one `unsafe`: the C library's clock of this thread.
+#[allow(unsafe_code)]
 pub fn thread_seconds() -> f64 {
     #[cfg(unix)]
     {

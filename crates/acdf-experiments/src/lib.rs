@@ -14,6 +14,7 @@
 //! `sample` plus, for a successful draw, one `pdf` call. The exact
 //! definition is in [`efficiency`].
 
+#![deny(unsafe_code)]
 // `!(x > 0.0)` is how this crate says "not positive, or NaN": the negated
 // comparison is the point, since NaN must take the rejecting branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

@@ -8,5 +8,7 @@
 //! temporary files to be removed when it is interrupted
 //! ([`fsio::install_interrupt_cleanup`]).
 
+#![forbid(unsafe_code)]
+
 pub mod fsio;
 pub mod limits;

@@ -17,6 +17,8 @@
 //! in [`rgl`] (which has its own error type), is a [`MaterialError`]. Tests
 //! that need the measured data find it through [`shared_data_dir`].
 
+#![forbid(unsafe_code)]
+
 pub mod analytic;
 pub mod merl;
 pub mod nbrdf;

@@ -5,6 +5,7 @@
 //! equal CPU time ([`render`]), and the same scene written for Mitsuba 3
 //! ([`mitsuba`]).
 
+#![forbid(unsafe_code)]
 // `!(x > 0.0)` is how this crate says "not positive, or NaN": the negated
 // comparison is the point, since NaN must take the rejecting branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

@@ -9,6 +9,8 @@
 //!   ([`PackedEnvCdf2D`](acdf_adaptive_cdf::PackedEnvCdf2D)); a shading normal draws from its region's table
 //!   (`oriented:NAME`).
 
+#![forbid(unsafe_code)]
+
 use std::sync::Arc;
 
 use acdf_adaptive_cdf::packed_env::PackedEnvBuilder;

@@ -8,6 +8,8 @@
 //! by simplifier name, and [`average_resolution`] reports the mean kept
 //! vertices as in the paper.
 
+#![forbid(unsafe_code)]
+
 pub mod sampler;
 
 pub use sampler::{adaptive_sampler, average_resolution, AdaptiveBrdfSampler};

@@ -4,6 +4,8 @@
 //! the hemisphere). It is exact for a Lambertian surface, needs no storage, and
 //! is the defensive lobe that other samplers may mix in.
 
+#![forbid(unsafe_code)]
+
 use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use acdf_core::{is_valid_outgoing, BxdfSample, BxdfSampler, Vec2, Vec3};
 

@@ -29,6 +29,8 @@
 //! normal incidence, 3e-5 for `chm_mint`, none for the matte paint; counted
 //! over 2·10^6 draws), and the pdf returned with them is still `pdf(wo, wi)`.
 
+#![forbid(unsafe_code)]
+
 use acdf_core::{clamp_unit, is_valid_outgoing, BxdfSample, BxdfSampler, Vec2, Vec3};
 pub use acdf_materials::rgl::{Bilinear2D, BlendedBilinear, RglBrdf};
 use glam::DVec2;
