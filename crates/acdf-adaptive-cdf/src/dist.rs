@@ -4,13 +4,12 @@ use crate::curve::{
     cdf_points, prefix_sums, push_vertices, segment_samples, Curve, CurveGuide, Running, Segment,
 };
 use crate::simplify::{validate_tolerance, ErrorBound, Simplifier};
+use acdf_core::simd::adaptive_cdf::{self, AdaptiveCurve, AdaptiveTable, STAGE};
+use acdf_core::simd::Avx2;
 use acdf_core::{
     clamp_unit, validate_table, Distribution1D, Distribution2D, Error, Result, Sample1D, Sample2D,
     Vec2,
 };
-
-#[cfg(target_arch = "x86_64")]
-mod gather;
 use acdf_tabulated::SliceDistribution;
 
 /// Tables longer than this cannot give distinct f32 vertex positions k / n.
@@ -188,23 +187,34 @@ impl Distribution1D for AdaptiveCdf1D {
     }
 
     /// The same samples as [`sample`](Distribution1D::sample): where the CPU
-    /// has AVX2, 32 at a time in SIMD lanes (`dist/gather.rs`), elsewhere
-    /// eight at a time in scalar stages.
+    /// has AVX2, whole stages of draws in SIMD lanes (the kernel of
+    /// `acdf_core::simd::adaptive_cdf`), and the rest eight at a time in
+    /// scalar stages.
     fn sample_batch(&self, u: &[f32], out: &mut [Sample1D]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            if let Some(run) = self.lane_list() {
-                // SAFETY: the token proves the CPU has AVX2, the one
-                // requirement of the function's target features.
-                unsafe { self.sample_batch_gather(cpu, run, u, out) };
-                return;
-            }
-        }
-        self.sample_batch_lanes(u, out);
+        acdf_core::dispatch!(Self::sample_batch_one, self, u, out)
     }
 }
 
 impl AdaptiveCdf1D {
+    /// This curve as the SIMD kernels read it.
+    #[inline(always)]
+    fn lanes(&self) -> AdaptiveCurve<'_> {
+        AdaptiveCurve {
+            vertices: &self.vertices,
+        }
+    }
+
+    /// [`Distribution1D::sample_batch`] itself, in the instance `cpu`
+    /// names: the core kernel's whole stages, then the scalar stages.
+    #[inline(always)]
+    fn sample_batch_one(&self, u: &[f32], out: &mut [Sample1D], cpu: Option<Avx2>) {
+        let done = match cpu {
+            Some(cpu) => adaptive_cdf::sample_batch_1d(cpu, &self.lanes(), u, out),
+            None => 0,
+        };
+        self.sample_batch_lanes(&u[done..], &mut out[done..]);
+    }
+
     /// The same samples as [`sample`](Distribution1D::sample), [`LANES`] at
     /// a time: their segments by one search stepping all lanes together,
     /// then their positions and densities as SIMD arithmetic.
@@ -264,7 +274,7 @@ impl AdaptiveCdf1D {
 /// follow the random numbers (one at a time, a 32-entry window compared at
 /// once, reached through the guide for the marginal's u and by a four-way
 /// search for longer lists, see `acdf_core::search`; in batches on AVX2,
-/// binary lifting in SIMD lanes, see `dist/gather.rs`).
+/// binary lifting in SIMD lanes, see `acdf_core::simd::adaptive_cdf`).
 ///
 /// # Examples
 ///
@@ -448,6 +458,17 @@ impl AdaptiveCdf2D {
     #[inline(always)]
     fn marginal_curve(&self) -> Curve<'_> {
         Curve::guided(&self.marginal, &self.marginal_guide)
+    }
+
+    /// This table as the SIMD kernels read it.
+    #[inline(always)]
+    fn lanes(&self) -> AdaptiveTable<'_> {
+        AdaptiveTable {
+            marginal: &self.marginal,
+            offsets: &self.offsets,
+            conditionals: &self.conditionals,
+            longest_conditional: self.longest_conditional,
+        }
     }
 
     /// The number of vertices kept by the marginal over y.
@@ -928,37 +949,19 @@ impl Distribution2D for AdaptiveCdf2D {
     }
 
     /// The same samples as [`sample`](Distribution2D::sample): where the CPU
-    /// has AVX2, 32 draws at a time in SIMD lanes (`dist/gather.rs`),
-    /// elsewhere eight at a time in scalar stages (`sample_batch_lanes`).
+    /// has AVX2, whole stages of draws in SIMD lanes (the kernel of
+    /// `acdf_core::simd::adaptive_cdf`), and the rest eight at a time in
+    /// scalar stages (`sample_batch_lanes`).
     fn sample_batch(&self, u: &[Vec2], out: &mut [Sample2D]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            if self.fits_lanes() {
-                // SAFETY: the token proves the CPU has AVX2, and the
-                // distribution fits the lanes.
-                unsafe { self.sample_batch_gather::<false>(cpu, u, out, Vec2::ZERO, &mut []) };
-                return;
-            }
-        }
-        self.sample_batch_lanes::<false>(u, out, Vec2::ZERO, &mut []);
+        acdf_core::dispatch!(Self::sample_batch_one, self, u, out)
     }
 
     /// The same densities as [`pdf`](Distribution2D::pdf), bit for bit:
-    /// where the CPU has AVX2, 32 points at a time in SIMD lanes
-    /// (`dist/gather.rs`), elsewhere one at a time.
+    /// where the CPU has AVX2, whole stages of points in SIMD lanes (the
+    /// kernel of `acdf_core::simd::adaptive_cdf`), and the rest one at a
+    /// time.
     fn pdf_batch(&self, p: &[Vec2], out: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            if self.fits_lanes() {
-                // SAFETY: the token proves the CPU has AVX2, and the
-                // distribution fits the lanes.
-                unsafe { self.pdf_batch_gather(cpu, p, out) };
-                return;
-            }
-        }
-        for (o, &p) in out.iter_mut().zip(p) {
-            *o = self.pdf(p);
-        }
+        acdf_core::dispatch!(Self::pdf_batch_one, self, p, out)
     }
 
     /// p_marginal(y) p_j(x), 0 outside [0, 1)^2.
@@ -1090,16 +1093,14 @@ impl SliceDistribution for AdaptiveCdf2D {
     ) {
         let len = u.len().min(out.len()).min(same.len());
         let (u, out, same) = (&u[..len], &mut out[..len], &mut same[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            if self.fits_lanes() {
-                // SAFETY: the token proves the CPU has AVX2, and the
-                // distribution fits the lanes.
-                unsafe { self.sample_batch_gather::<true>(cpu, u, out, margin, same) };
-                return;
-            }
-        }
-        self.sample_batch_lanes::<true>(u, out, margin, same);
+        acdf_core::dispatch!(
+            Self::sample_batch_and_same_cell_one,
+            self,
+            u,
+            margin,
+            out,
+            same
+        )
     }
 
     /// Draw `u[k]` from `dists[k]` for every k (the slices of a batch of
@@ -1107,8 +1108,9 @@ impl SliceDistribution for AdaptiveCdf2D {
     /// [`same_cell_around`](Self::same_cell_around)`(sample.p, margin)`
     /// of each draw in its own distribution: exactly
     /// `dists[k].sample_and_same_cell(u[k], margin)`. Where the CPU has
-    /// AVX2 the draws go 32 at a time in SIMD lanes, each lane
-    /// reading its own distribution (`dist/gather.rs`); elsewhere eight (`LANES`)
+    /// AVX2, a stage of [`STAGE`] draws whose distributions all fit goes in
+    /// SIMD lanes, each lane reading its own distribution (the kernel of
+    /// `acdf_core::simd::adaptive_cdf`); the other draws go eight (`LANES`)
     /// at a time in scalar stages (marginal segments, conditional segments,
     /// then positions), so that the searches of different slices overlap.
     /// Entries beyond the shortest of the four lengths are left alone.
@@ -1121,34 +1123,120 @@ impl SliceDistribution for AdaptiveCdf2D {
     ) {
         let len = dists.len().min(u.len()).min(out.len()).min(same.len());
         let (dists, u, out, same) = (&dists[..len], &u[..len], &mut out[..len], &mut same[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2, the one requirement
-            // of the function's target features.
-            unsafe { Self::sample_each_gather(cpu, dists, u, margin, out, same) };
-            return;
-        }
-        Self::sample_each_lanes(dists, u, margin, out, same);
+        acdf_core::dispatch!(
+            Self::sample_each_and_same_cell_one,
+            dists,
+            u,
+            margin,
+            out,
+            same
+        )
     }
 
     /// `dists[k].pdf(p[k])` for every k (the slices of a batch of shading
     /// points), bit for bit, eight (`LANES`) at a time in stages (marginal
     /// segments, conditional segments, densities) so that the searches of
-    /// different slices overlap; where the CPU has AVX2, 32 at a time
-    /// in SIMD lanes, each lane reading its own distribution
-    /// (`dist/gather.rs`). Entries beyond the shortest of the three lengths
-    /// are left alone.
+    /// different slices overlap; where the CPU has AVX2, a stage of
+    /// [`STAGE`] points whose distributions all fit goes in SIMD lanes,
+    /// each lane reading its own distribution (the kernel of
+    /// `acdf_core::simd::adaptive_cdf`). Entries beyond the shortest of the
+    /// three lengths are left alone.
     fn pdf_each(dists: &[&Self], p: &[Vec2], out: &mut [f32]) {
         let len = dists.len().min(p.len()).min(out.len());
         let (dists, p, out) = (&dists[..len], &p[..len], &mut out[..len]);
-        #[cfg(target_arch = "x86_64")]
-        if let Some(cpu) = acdf_core::cpu::avx2() {
-            // SAFETY: the token proves the CPU has AVX2, the one requirement
-            // of the function's target features.
-            unsafe { Self::pdf_each_gather(cpu, dists, p, out) };
-            return;
+        acdf_core::dispatch!(Self::pdf_each_one, dists, p, out)
+    }
+}
+
+/// The batch entry points themselves, in the instance of
+/// [`acdf_core::dispatch!`] that `cpu` names: the core kernels where they
+/// apply (`cpu` is the token and the tables fit their lanes), the scalar
+/// code for the rest.
+impl AdaptiveCdf2D {
+    /// [`Distribution2D::sample_batch`].
+    #[inline(always)]
+    fn sample_batch_one(&self, u: &[Vec2], out: &mut [Sample2D], cpu: Option<Avx2>) {
+        let done = match cpu {
+            Some(cpu) => adaptive_cdf::sample_batch(cpu, &self.lanes(), u, out),
+            None => 0,
+        };
+        self.sample_batch_lanes::<false>(&u[done..], &mut out[done..], Vec2::ZERO, &mut []);
+    }
+
+    /// [`Distribution2D::pdf_batch`].
+    #[inline(always)]
+    fn pdf_batch_one(&self, p: &[Vec2], out: &mut [f32], cpu: Option<Avx2>) {
+        let done = match cpu {
+            Some(cpu) => adaptive_cdf::pdf_batch(cpu, &self.lanes(), p, out),
+            None => 0,
+        };
+        for (o, &p) in out[done..].iter_mut().zip(&p[done..]) {
+            *o = self.pdf(p);
         }
-        Self::pdf_each_lanes(dists, p, out);
+    }
+
+    /// [`SliceDistribution::sample_batch_and_same_cell`], for slices of
+    /// equal length.
+    #[inline(always)]
+    fn sample_batch_and_same_cell_one(
+        &self,
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+        cpu: Option<Avx2>,
+    ) {
+        let done = match cpu {
+            Some(cpu) => {
+                adaptive_cdf::sample_batch_and_same_cell(cpu, &self.lanes(), u, margin, out, same)
+            }
+            None => 0,
+        };
+        let (u, out, same) = (&u[done..], &mut out[done..], &mut same[done..]);
+        self.sample_batch_lanes::<true>(u, out, margin, same);
+    }
+
+    /// [`SliceDistribution::sample_each_and_same_cell`], for slices of
+    /// equal length, a stage of [`STAGE`] slices at a time.
+    #[inline(always)]
+    fn sample_each_and_same_cell_one(
+        dists: &[&Self],
+        u: &[Vec2],
+        margin: Vec2,
+        out: &mut [Sample2D],
+        same: &mut [bool],
+        cpu: Option<Avx2>,
+    ) {
+        for (k, stage) in dists.chunks(STAGE).enumerate() {
+            let at = k * STAGE..k * STAGE + stage.len();
+            let (u, out, same) = (&u[at.clone()], &mut out[at.clone()], &mut same[at]);
+            let done = match (cpu, <&[&Self; STAGE]>::try_from(stage)) {
+                (Some(cpu), Ok(stage)) => {
+                    let table = |l: usize| stage[l].lanes();
+                    adaptive_cdf::sample_each_and_same_cell(cpu, table, u, margin, out, same)
+                }
+                _ => 0,
+            };
+            let (u, out, same) = (&u[done..], &mut out[done..], &mut same[done..]);
+            Self::sample_each_lanes(&stage[done..], u, margin, out, same);
+        }
+    }
+
+    /// [`SliceDistribution::pdf_each`], for slices of equal length, a
+    /// stage of [`STAGE`] slices at a time.
+    #[inline(always)]
+    fn pdf_each_one(dists: &[&Self], p: &[Vec2], out: &mut [f32], cpu: Option<Avx2>) {
+        for (k, stage) in dists.chunks(STAGE).enumerate() {
+            let at = k * STAGE..k * STAGE + stage.len();
+            let (p, out) = (&p[at.clone()], &mut out[at]);
+            let done = match (cpu, <&[&Self; STAGE]>::try_from(stage)) {
+                (Some(cpu), Ok(stage)) => adaptive_cdf::pdf_each(cpu, |l| stage[l].lanes(), p, out),
+                _ => 0,
+            };
+            if done < stage.len() {
+                Self::pdf_each_lanes(&stage[done..], &p[done..], &mut out[done..]);
+            }
+        }
     }
 }
 

@@ -34,7 +34,7 @@
 //! How each default was chosen, with the command that measures it, is in
 //! `docs/results.md`.
 
-#![deny(unsafe_op_in_unsafe_fn)]
+#![forbid(unsafe_code)]
 
 mod builder;
 mod curve;

@@ -16,7 +16,10 @@
 //! which distribution is sampled (slightly), never the exactness of its
 //! density.
 
-use acdf_core::search::{count_at_or_below, count_window, Guide, WINDOW};
+use acdf_core::search::{
+    count_at_or_below, count_window, short_window_at_or_below_u32, window_at_or_below_u32, Guide,
+    WINDOW,
+};
 use acdf_core::{clamp_unit, Distribution2D, Error, Result, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use acdf_lights::TableBuilder;
 
@@ -527,54 +530,20 @@ pub fn quantise(masses: &[f64], q: u32) -> Vec<u32> {
 /// most [`SHORT_WINDOW`], whose pair is `<= key`, when the vertex after
 /// them is above the key (as the conditional guide's candidates are): the
 /// run of ones from the first bit of one compare of [`SHORT_WINDOW`]
-/// entries ([`short_window_mask`]; it may reach into the padding after
-/// the conditionals). A `data` without room for the window after `start`
-/// (none of the packed tables, whose padding leaves it) is compared entry
-/// by entry up to its end.
+/// entries ([`short_window_at_or_below_u32`]; it may reach into the
+/// padding after the conditionals). A `data` without room for the window
+/// after `start` (none of the packed tables, whose padding leaves it) is
+/// compared entry by entry up to its end.
 #[inline(always)]
 fn count_short_window(data: &[u32], start: usize, len: usize, key: u32) -> usize {
     let mask = match data.get(start..start + SHORT_WINDOW) {
-        Some(window) => short_window_mask(
+        Some(window) => short_window_at_or_below_u32(
             window.try_into().expect("a window of SHORT_WINDOW entries"),
             key,
         ),
         None => mask_at_or_below(&data[start.min(data.len())..], key),
     };
     (mask.trailing_ones() as usize).min(len)
-}
-
-/// Bit k set where `window[k] <= key` (unsigned), for a window of
-/// [`SHORT_WINDOW`]: on x86-64 two four-wide SSE2 compares (signed, after
-/// flipping the sign bits of both sides) and their sign bits, elsewhere
-/// [`mask_at_or_below`]. A fixed-size window is what lets the
-/// compare be one step: over a slice of unknown length the compiler
-/// builds a loop with a remainder, several branches a draw.
-#[inline(always)]
-fn short_window_mask(window: &[u32; SHORT_WINDOW], key: u32) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{
-            __m128i, _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_loadu_si128, _mm_movemask_ps,
-            _mm_set1_epi32, _mm_xor_si128,
-        };
-        let p = window.as_ptr() as *const __m128i;
-        // SAFETY: SSE2 is part of the x86-64 baseline; the two unaligned
-        // loads read four u32 each, the eight entries of `window`.
-        let above = unsafe {
-            let sign = _mm_set1_epi32(i32::MIN);
-            let k = _mm_xor_si128(_mm_set1_epi32(key as i32), sign);
-            let above = |i: usize| {
-                let v = _mm_xor_si128(_mm_loadu_si128(p.add(i)), sign);
-                _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(v, k))) as u32
-            };
-            above(0) | above(1) << 4
-        };
-        !above & 0xff
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        mask_at_or_below(window, key)
-    }
 }
 
 /// Bit k set where `entries[k] <= key`, one entry at a time: the portable
@@ -621,40 +590,11 @@ pub fn count_vertices_at_or_below(data: &[u32], start: usize, len: usize, key: u
     lo - start + (mask.trailing_ones() as usize).min(n)
 }
 
-/// Bit k set where `window[k] <= key` (unsigned): on x86-64 eight
-/// four-wide SSE2 compares (signed, after flipping the sign bits of both
-/// sides, which orders unsigned values as signed ones), elsewhere
-/// [`window_mask_portable`].
+/// Bit k set where `window[k] <= key` (unsigned), the 32 entries compared
+/// at once ([`window_at_or_below_u32`]).
 #[inline(always)]
 pub fn window_mask(window: &[u32; WINDOW_PAIRS], key: u32) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{
-            __m128i, _mm_cmpgt_epi32, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16,
-            _mm_packs_epi32, _mm_set1_epi32, _mm_xor_si128,
-        };
-        let p = window.as_ptr() as *const __m128i;
-        // SAFETY: SSE2 is part of the x86-64 baseline; the eight unaligned
-        // loads read four u32 each, the 32 entries of `window`.
-        unsafe {
-            let sign = _mm_set1_epi32(i32::MIN);
-            let k = _mm_xor_si128(_mm_set1_epi32(key as i32), sign);
-            // All ones where the entry is above the key.
-            let above =
-                |i: usize| _mm_cmpgt_epi32(_mm_xor_si128(_mm_loadu_si128(p.add(i)), sign), k);
-            // All-ones or zero lanes stay so through the saturating packs.
-            let half = |i: usize| {
-                let lo = _mm_packs_epi32(above(i), above(i + 1));
-                let hi = _mm_packs_epi32(above(i + 2), above(i + 3));
-                _mm_movemask_epi8(_mm_packs_epi16(lo, hi)) as u32
-            };
-            !(half(0) | (half(4) << 16))
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        window_mask_portable(window, key)
-    }
+    window_at_or_below_u32(window, key)
 }
 
 /// [`window_mask`] one entry at a time.
@@ -668,9 +608,9 @@ mod tests {
     use crate::DouglasPeucker;
     use rand::{Rng, SeedableRng};
 
-    /// Both SSE2 window compares (32 and 8 entries) give the portable
-    /// form's bits, for random windows and keys at the edges of the
-    /// signed and unsigned ranges.
+    /// Both window compares (32 and 8 entries) give the portable form's
+    /// bits, for random windows and keys at the edges of the signed and
+    /// unsigned ranges.
     #[test]
     fn window_masks_agree_with_the_portable_compare() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
@@ -689,7 +629,10 @@ mod tests {
                 w[20],
             ] {
                 assert_eq!(window_mask(&w, key), window_mask_portable(&w, key));
-                assert_eq!(short_window_mask(short, key), mask_at_or_below(short, key));
+                assert_eq!(
+                    short_window_at_or_below_u32(short, key),
+                    mask_at_or_below(short, key)
+                );
             }
         }
     }

@@ -14,7 +14,8 @@
 //!   the token and plain views of the stored arrays:
 //!   [`shared_grid`] (the outgoing sampler's quantised slices);
 //!   [`piecewise_constant`] (the uniform plug-in's piecewise-constant
-//!   tables);
+//!   tables); [`adaptive_cdf`] (the adaptive distributions of
+//!   `acdf-adaptive-cdf`);
 //! - [`clock`] reads the core clock for `acdf bench`.
 //!
 //! Every vector form computes the same IEEE operations in the same order as
@@ -22,6 +23,7 @@
 //! not depend on the path; the tests of each kernel, and the conformance
 //! crate's `portable` tests, compare the two bit for bit.
 
+pub mod adaptive_cdf;
 pub mod clock;
 pub mod cpu;
 pub mod fast;

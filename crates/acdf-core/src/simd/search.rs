@@ -509,6 +509,90 @@ fn mask_u8_sse2(window: &[u8; NARROW_WINDOW], key: u8) -> u32 {
     }
 }
 
+/// Bit k set where `window[k] <= key`, for unsigned 32-bit values: the
+/// packed conditionals of the orientation-aware environment sampler, whose
+/// entries are a quantised CDF value and a column in one `u32`.
+///
+/// On x86-64 eight four-wide SSE2 compares (the x86-64 baseline) of the
+/// entries above the key, signed after flipping the sign bit of both sides
+/// (which orders unsigned values as signed ones), narrowed to bytes by
+/// saturating packs (which keep lanes of all ones or zeros) and read as
+/// two 16-bit masks, inverted; elsewhere one entry at a time.
+#[inline(always)]
+pub fn window_at_or_below_u32(window: &[u32; WINDOW], key: u32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            __m128i, _mm_cmpgt_epi32, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16,
+            _mm_packs_epi32, _mm_set1_epi32, _mm_xor_si128,
+        };
+        let p = window.as_ptr() as *const __m128i;
+        // SAFETY: SSE2 is part of the x86-64 baseline; the eight unaligned
+        // loads read four u32 each, the 32 entries of `window`.
+        unsafe {
+            let sign = _mm_set1_epi32(i32::MIN);
+            let k = _mm_xor_si128(_mm_set1_epi32(key as i32), sign);
+            // All ones where the entry is above the key.
+            let above =
+                |i: usize| _mm_cmpgt_epi32(_mm_xor_si128(_mm_loadu_si128(p.add(i)), sign), k);
+            let half = |i: usize| {
+                let lo = _mm_packs_epi32(above(i), above(i + 1));
+                let hi = _mm_packs_epi32(above(i + 2), above(i + 3));
+                _mm_movemask_epi8(_mm_packs_epi16(lo, hi)) as u32
+            };
+            !(half(0) | (half(4) << 16))
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        u32_mask_portable(window, key)
+    }
+}
+
+/// [`window_at_or_below_u32`] for a window of [`SHORT_WINDOW`] entries:
+/// two four-wide SSE2 compares on x86-64, as there, and their sign bits.
+/// A fixed-size window lets the compare be straight-line code, where a
+/// slice of unknown length would take a loop and its remainder.
+#[inline(always)]
+pub fn short_window_at_or_below_u32(window: &[u32; SHORT_WINDOW], key: u32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            __m128i, _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_loadu_si128, _mm_movemask_ps,
+            _mm_set1_epi32, _mm_xor_si128,
+        };
+        let p = window.as_ptr() as *const __m128i;
+        // SAFETY: SSE2 is part of the x86-64 baseline; the two unaligned
+        // loads read four u32 each, the eight entries of `window`.
+        let above = unsafe {
+            let sign = _mm_set1_epi32(i32::MIN);
+            let k = _mm_xor_si128(_mm_set1_epi32(key as i32), sign);
+            let above = |i: usize| {
+                let v = _mm_xor_si128(_mm_loadu_si128(p.add(i)), sign);
+                _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(v, k))) as u32
+            };
+            above(0) | above(1) << 4
+        };
+        !above & 0xff
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        u32_mask_portable(window, key)
+    }
+}
+
+/// [`window_at_or_below_u32`] and [`short_window_at_or_below_u32`] one
+/// entry at a time: the form for CPUs other than x86-64, and the reference
+/// the tests hold the SSE2 forms to.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline(always)]
+fn u32_mask_portable(entries: &[u32], key: u32) -> u32 {
+    entries
+        .iter()
+        .enumerate()
+        .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -732,6 +816,42 @@ mod tests {
             }
             for k in keys8 {
                 assert_eq!(mask_u8_sse2(&w8, k), narrow_mask_portable(&w8, k), "{k}");
+            }
+        }
+    }
+
+    /// The SSE2 masks of 32-bit windows are those of one compare per entry,
+    /// for random windows and keys at the edges of the signed and unsigned
+    /// ranges.
+    #[test]
+    fn u32_masks_equal_the_portable_masks() {
+        let mut state = 5u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 32) as u32
+        };
+        for _ in 0..2000 {
+            let w: [u32; WINDOW] = std::array::from_fn(|_| next());
+            let short: &[u32; SHORT_WINDOW] = w[..SHORT_WINDOW].try_into().unwrap();
+            let keys = [
+                0,
+                1,
+                i32::MAX as u32,
+                1 << 31,
+                u32::MAX - 1,
+                u32::MAX,
+                next(),
+                w[3],
+                w[20],
+            ];
+            for key in keys {
+                assert_eq!(window_at_or_below_u32(&w, key), u32_mask_portable(&w, key));
+                assert_eq!(
+                    short_window_at_or_below_u32(short, key),
+                    u32_mask_portable(short, key)
+                );
             }
         }
     }
