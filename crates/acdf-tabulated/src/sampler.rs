@@ -464,18 +464,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
         // the exact density.
         let usable = is_positive_finite(draw.table);
         let pdf = if shortcut && usable {
-            self.mix_with_cosine(draw.table, wi)
+            mix_with_cosine(self.cosine_fraction, draw.table, wi)
         } else {
             exact()
         };
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
-    }
-
-    /// The mixing of [`mixed_pdf`](Self::mixed_pdf) for a known table
-    /// density ([`mix_with_cosine`]).
-    #[inline(always)]
-    fn mix_with_cosine(&self, table: f32, wi: Vec3) -> f32 {
-        mix_with_cosine(self.cosine_fraction, table, wi)
     }
 
     /// The mixed density for a valid wo; 0 for a non-finite wi or one at or
@@ -496,7 +489,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             Some(slice) if a < 1.0 => Self::table_pdf(slice, wo, wi),
             _ => 0.0,
         };
-        self.mix_with_cosine(table, wi)
+        mix_with_cosine(self.cosine_fraction, table, wi)
     }
 }
 

@@ -22,13 +22,12 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{
-    Slice, SliceGeometry, TableCoordinates, TableDraw, TabulatedBrdfSampler, BATCH_CHUNK,
-    CELL_MARGIN,
+    mix_with_cosine, Slice, SliceGeometry, TableCoordinates, TableDraw, TabulatedBrdfSampler,
+    BATCH_CHUNK, CELL_MARGIN,
 };
 use crate::tabulate::HalfMap;
 use crate::{SliceBuilder, SliceDistribution};
 use acdf_core::fast::{sin_cos_quarter_turns_each, sin_cos_turns_each};
-#[cfg(target_arch = "x86_64")]
 use acdf_core::simd::Avx2;
 use acdf_core::{clamp_unit, is_valid_outgoing, BxdfSample, Distribution2D, Sample2D, Vec2, Vec3};
 
@@ -259,7 +258,13 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
                 *o = self.finish_draw_with(
                     &draws.get(l),
                     || same_cell[l],
-                    || self.mix_with_cosine(coordinates.get(l).table_pdf(slice.dist), wi[l]),
+                    || {
+                        mix_with_cosine(
+                            self.cosine_fraction,
+                            coordinates.get(l).table_pdf(slice.dist),
+                            wi[l],
+                        )
+                    },
                 );
             }
         }
@@ -292,7 +297,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             slice.dist.pdf_batch(&points[..n], &mut p_xv[..n]);
             for (l, (o, &wi)) in oc[..n].iter_mut().zip(&wc[..n]).enumerate() {
                 *o = if wi.is_finite() && wi.z > 0.0 {
-                    self.mix_with_cosine(coordinates.get(l).table_pdf_from(p_xv[l]), wi)
+                    mix_with_cosine(
+                        self.cosine_fraction,
+                        coordinates.get(l).table_pdf_from(p_xv[l]),
+                        wi,
+                    )
                 } else {
                     0.0
                 };
@@ -504,7 +513,13 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
                     self.finish_draw_with(
                         &draws.get(l),
                         || same[l],
-                        || self.mix_with_cosine(coordinates.get(l).table_pdf(dist), wi[l]),
+                        || {
+                            mix_with_cosine(
+                                self.cosine_fraction,
+                                coordinates.get(l).table_pdf(dist),
+                                wi[l],
+                            )
+                        },
                     )
                 });
             }
@@ -552,9 +567,11 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
             for (l, o) in oc[..n].iter_mut().enumerate() {
                 let wi = ic[l];
                 *o = match lanes.dist[l] {
-                    Some(_) if wi.is_finite() && wi.z > 0.0 => {
-                        self.mix_with_cosine(coordinates.get(l).table_pdf_from(p_xv[l]), wi)
-                    }
+                    Some(_) if wi.is_finite() && wi.z > 0.0 => mix_with_cosine(
+                        self.cosine_fraction,
+                        coordinates.get(l).table_pdf_from(p_xv[l]),
+                        wi,
+                    ),
                     Some(_) => 0.0,
                     // An invalid wo, or a slice that failed to build.
                     None => self.pdf_one(wc[l], wi, None),

@@ -117,14 +117,6 @@ pub fn v_of_theta_h(theta_h: f32) -> f32 {
     (theta_h.max(0.0) / FRAC_PI_2).sqrt()
 }
 
-/// J(v) = |∂(θ_h, φ_h)/∂(x, v)| sin θ_h = (π v)(2π) sin θ_h, so that
-/// dω_h = J dx dv under θ_h = (π/2) v² (outside the polar cap row; see
-/// [`HalfMap::jacobian`]).
-#[inline(always)]
-pub fn half_jacobian(v: f32, sin_theta_h: f32) -> f32 {
-    PI * v * TAU * sin_theta_h
-}
-
 /// The half-vector row map of a slice with `n_theta_h` rows: v ↦ θ_h.
 ///
 /// Rows 1.. follow θ_h = (π/2) v² ([`theta_h_of`]). The first row, the
@@ -220,13 +212,15 @@ impl HalfMap {
         }
     }
 
-    /// J(v) = dω_h / (dx dv): (π v)(2π) sin θ_h outside the cap and the
-    /// constant 2π (1 - cos θ_1) / v_1 inside it.
+    /// J(v) = dω_h / (dx dv), so that dω_h = J dx dv: outside the cap,
+    /// |∂(θ_h, φ_h)/∂(x, v)| sin θ_h = (π v)(2π) sin θ_h under
+    /// θ_h = (π/2) v² and φ_h = 2π x; inside it, the constant
+    /// 2π (1 - cos θ_1) / v_1.
     #[inline(always)]
     pub fn jacobian(&self, v: f32, sin_h: f32) -> f32 {
         let cap = self.cap_jacobian;
         if v >= self.v1 {
-            half_jacobian(v, sin_h)
+            PI * v * TAU * sin_h
         } else {
             cap
         }

@@ -32,13 +32,10 @@ use acdf_core::{is_valid_outgoing, BxdfSample, Vec2, Vec3};
 const CHUNK: usize = 64;
 
 /// The AVX2 token where the batch function runs in AVX2 code, so that the
-/// chunk's searches run in lanes (`acdf_core::simd::shared_grid`); `None` for the
-/// portable path, which searches one lane at a time. (Elsewhere than on
-/// x86-64, a type with no token, so always `None`.)
-#[cfg(target_arch = "x86_64")]
-pub(super) type Simd = Option<acdf_core::cpu::Avx2>;
-#[cfg(not(target_arch = "x86_64"))]
-pub(super) type Simd = Option<std::convert::Infallible>;
+/// chunk's searches run in lanes (`acdf_core::simd::shared_grid`); `None` for
+/// the portable path, which searches one lane at a time (always, elsewhere
+/// than on x86-64, where no token is ever made).
+pub(super) type Simd = Option<acdf_core::simd::Avx2>;
 
 #[cfg(target_arch = "x86_64")]
 const _: () = assert!(CHUNK.is_multiple_of(acdf_core::search::lanes::STAGE));

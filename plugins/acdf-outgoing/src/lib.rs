@@ -912,20 +912,15 @@ fn is_positive_finite(v: f32) -> bool {
 const CELL_MARGIN: (f32, f32) = (1.0 / 32768.0, 1.0 / 65536.0);
 
 impl OutgoingSampler {
-    /// [`BxdfSampler::sample`] itself.
+    /// [`BxdfSampler::sample`] itself: with probability a a cosine draw,
+    /// otherwise a table draw from the slice picked by the blend weights;
+    /// the density is `pdf` of the returned wi.
     #[inline(always)]
     fn sample_one(&self, wo: Vec3, u: Vec2, simd: Simd) -> Option<BxdfSample> {
         if !is_valid_outgoing(wo) {
             return None;
         }
-        self.sample_in(&self.outgoing(simd, wo), wo, u)
-    }
-
-    /// With probability a a cosine draw, otherwise a table draw from the
-    /// slice picked by the blend weights; the density is `pdf` of the
-    /// returned wi. `wo` must be valid and `o` its [`Outgoing`].
-    #[inline(always)]
-    fn sample_in(&self, o: &Outgoing, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        let o = &self.outgoing(simd, wo);
         match self.route(u) {
             Route::Cosine(u) => self.sample_cosine(o, wo, u),
             Route::Table(u) => {
