@@ -57,6 +57,8 @@ use acdf::material::load_material;
 use acdf::registry::{effective_resolution, make_sampler, SamplerOps, SamplerOptions};
 use acdf::spec::MaterialSpec;
 
+use crate::common::load_average;
+
 /// What `acdf bench` runs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchConfig {
@@ -200,16 +202,6 @@ fn best_seconds(repeats: usize, mut run: impl FnMut()) -> f64 {
         })
         .fold(f64::INFINITY, f64::min)
         .max(1e-9)
-}
-
-/// The 1-minute load average from `/proc/loadavg`, if readable.
-fn load_average() -> Option<f64> {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
 }
 
 /// The `cpu` field of [`BenchReport`].

@@ -402,3 +402,13 @@ pub fn file_stem_safe(s: &str) -> String {
         })
         .collect()
 }
+
+/// The 1-minute load average from `/proc/loadavg`, if readable.
+pub fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}

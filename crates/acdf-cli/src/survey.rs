@@ -16,7 +16,7 @@ use acdf_experiments::survey::{
 };
 use serde::Serialize;
 
-use crate::common::{bar, parse_list, write_file, write_json, MeasureArgs};
+use crate::common::{bar, load_average, parse_list, write_file, write_json, MeasureArgs};
 
 /// What the survey's columns are: the long help's epilogue.
 pub const COLUMNS: &str = "\
@@ -79,16 +79,6 @@ struct SurveyFile<'a> {
     load_average_end: Option<f64>,
     summary: &'a [SummaryRow],
     rows: &'a [SurveyRow],
-}
-
-/// The 1-minute load average from `/proc/loadavg`, if readable.
-fn load_average() -> Option<f64> {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
 }
 
 pub fn run(a: Args) -> Result<()> {

@@ -227,6 +227,17 @@ impl<'a> ByteReader<'a> {
             reason: "not UTF-8".into(),
         })
     }
+    /// Reads the kind string and checks that it is `expected`.
+    pub fn kind(&mut self, expected: &str) -> Result<(), PersistError> {
+        let found = self.string("kind")?;
+        if found != expected {
+            return Err(PersistError::WrongKind {
+                found,
+                expected: expected.to_string(),
+            });
+        }
+        Ok(())
+    }
     pub fn f32_array(&mut self, field: &'static str) -> Result<Vec<f32>, PersistError> {
         let n = self.count(field, 4)?;
         let b = self.take(field, n * 4)?;
@@ -486,13 +497,7 @@ where
     /// documentation).
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, PersistError> {
         let mut r = ByteReader::new(open(bytes)?);
-        let kind = r.string("kind")?;
-        if kind != B::KIND {
-            return Err(PersistError::WrongKind {
-                found: kind,
-                expected: B::KIND.to_string(),
-            });
-        }
+        r.kind(B::KIND)?;
         let name = r.string("sampler name")?;
         let builder = B::decode(&mut r)?;
         if builder.name() != name {

@@ -37,6 +37,16 @@ const CHUNK: usize = 64;
 /// than on x86-64, where no token is ever made).
 pub(super) type Simd = Option<acdf_core::simd::Avx2>;
 
+/// The token and the slices' arrays as the lane kernels read them, found
+/// once per batch call; `None` where the chunks search one lane at a time.
+#[cfg(target_arch = "x86_64")]
+type Kernel<'a> = Option<(
+    acdf_core::simd::Avx2,
+    acdf_core::simd::shared_grid::SharedGrid<'a>,
+)>;
+#[cfg(not(target_arch = "x86_64"))]
+type Kernel<'a> = Option<std::marker::PhantomData<&'a ()>>;
+
 #[cfg(target_arch = "x86_64")]
 const _: () = assert!(CHUNK.is_multiple_of(acdf_core::search::lanes::STAGE));
 
@@ -200,6 +210,20 @@ impl CoordinateLanes {
 }
 
 impl OutgoingSampler {
+    /// The lane kernel of a batch in the instance `simd` names.
+    #[inline(always)]
+    fn kernel(&self, simd: Simd) -> Kernel<'_> {
+        #[cfg(target_arch = "x86_64")]
+        {
+            simd.zip(self.slices.lane_grid())
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = simd;
+            None
+        }
+    }
+
     /// [`BxdfSampler::sample_batch`](acdf_core::BxdfSampler::sample_batch)
     /// itself: the blend and rotation of wo found once, then
     /// [`sample_chunk`](Self::sample_chunk) per chunk.
@@ -216,8 +240,9 @@ impl OutgoingSampler {
             return;
         }
         let frame = OneFrame(wo, self.outgoing(simd, wo));
+        let kernel = self.kernel(simd);
         for (uc, oc) in u.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            self.sample_chunk(simd, &frame, uc, oc);
+            self.sample_chunk(kernel, &frame, uc, oc);
         }
     }
 
@@ -233,6 +258,7 @@ impl OutgoingSampler {
         simd: Simd,
     ) {
         let mut frames = EachFrame::new();
+        let kernel = self.kernel(simd);
         for ((wc, uc), oc) in wo
             .chunks(CHUNK)
             .zip(u.chunks(CHUNK))
@@ -240,7 +266,7 @@ impl OutgoingSampler {
         {
             frames.fill(simd, self, wc);
             let n = wc.len().min(uc.len()).min(oc.len());
-            self.sample_chunk(simd, &frames, &uc[..n], &mut oc[..n]);
+            self.sample_chunk(kernel, &frames, &uc[..n], &mut oc[..n]);
         }
     }
 
@@ -253,8 +279,9 @@ impl OutgoingSampler {
             return;
         }
         let frame = OneFrame(wo, self.outgoing(simd, wo));
+        let kernel = self.kernel(simd);
         for (wc, oc) in wi.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            self.pdf_chunk(simd, &frame, wc, oc);
+            self.pdf_chunk(kernel, &frame, wc, oc);
         }
     }
 
@@ -263,6 +290,7 @@ impl OutgoingSampler {
     #[inline(always)]
     pub(super) fn pdf_each_one(&self, wo: &[Vec3], wi: &[Vec3], out: &mut [f32], simd: Simd) {
         let mut frames = EachFrame::new();
+        let kernel = self.kernel(simd);
         for ((wc, ic), oc) in wo
             .chunks(CHUNK)
             .zip(wi.chunks(CHUNK))
@@ -270,18 +298,18 @@ impl OutgoingSampler {
         {
             frames.fill(simd, self, wc);
             let n = wc.len().min(ic.len()).min(oc.len());
-            self.pdf_chunk(simd, &frames, &ic[..n], &mut oc[..n]);
+            self.pdf_chunk(kernel, &frames, &ic[..n], &mut oc[..n]);
         }
     }
 
     /// The draws of one chunk (at most [`CHUNK`] pairs): the table points
-    /// (in lanes where `simd` allows, one lane at a time otherwise), their
+    /// (in lanes where `kernel` is given, one lane at a time otherwise), their
     /// angles many at a time, the geometry as one loop over the lanes, and
     /// each draw's check.
     #[inline(always)]
     fn sample_chunk<F: Frames>(
         &self,
-        simd: Simd,
+        kernel: Kernel<'_>,
         frames: &F,
         u: &[Vec2],
         out: &mut [Option<BxdfSample>],
@@ -317,9 +345,9 @@ impl OutgoingSampler {
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut in_lanes = false;
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = simd;
+        let _ = kernel;
         #[cfg(target_arch = "x86_64")]
-        if let Some((cpu, grid)) = simd.zip(self.slices.lane_grid()) {
+        if let Some((cpu, grid)) = kernel {
             use acdf_core::search::lanes::STAGE;
             use acdf_core::simd::shared_grid::{DrawInputs, DrawnPoints};
             in_lanes = true;
@@ -401,10 +429,10 @@ impl OutgoingSampler {
 
     /// The densities of one chunk (at most [`CHUNK`] pairs): the
     /// coordinates as one loop over the lanes, the blended densities of
-    /// the table points in lanes where `simd` allows, then each density's
+    /// the table points in lanes where `kernel` is given, then each density's
     /// check and Jacobian (and the table lookups, without lanes).
     #[inline(always)]
-    fn pdf_chunk<F: Frames>(&self, simd: Simd, frames: &F, wi: &[Vec3], out: &mut [f32]) {
+    fn pdf_chunk<F: Frames>(&self, kernel: Kernel<'_>, frames: &F, wi: &[Vec3], out: &mut [f32]) {
         let n = wi.len().min(out.len()).min(CHUNK);
         let map = self.map;
         let mut lanes = CoordinateLanes {
@@ -431,9 +459,9 @@ impl OutgoingSampler {
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut in_lanes = false;
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = simd;
+        let _ = kernel;
         #[cfg(target_arch = "x86_64")]
-        if let Some((cpu, grid)) = simd.zip(self.slices.lane_grid()) {
+        if let Some((cpu, grid)) = kernel {
             use acdf_core::search::lanes::STAGE;
             in_lanes = true;
             for at in (0..CHUNK).step_by(STAGE) {

@@ -158,13 +158,7 @@ impl OutgoingSampler {
     /// Read a sampler from a file image, checking every field.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, PersistError> {
         let mut r = ByteReader::new(open(bytes)?);
-        let kind = r.string("kind")?;
-        if kind != KIND {
-            return Err(PersistError::WrongKind {
-                found: kind,
-                expected: KIND.to_string(),
-            });
-        }
+        r.kind(KIND)?;
         let version = r.u32("outgoing version")?;
         if version != OUTGOING_VERSION {
             let why = match version {

@@ -50,13 +50,7 @@ const _: () =
 /// (its envelope checked; an error for a file of another kind).
 pub fn is_anisotropic(bytes: &[u8]) -> Result<bool, PersistError> {
     let mut r = ByteReader::new(open(bytes)?);
-    let kind = r.string("kind")?;
-    if kind != KIND {
-        return Err(PersistError::WrongKind {
-            found: kind,
-            expected: KIND.to_string(),
-        });
-    }
+    r.kind(KIND)?;
     let version = r.u32("outgoing version")?;
     Ok(version == ANISOTROPIC_VERSION || version == TENSOR_VERSION)
 }
@@ -100,13 +94,7 @@ impl AnisotropicOutgoingSampler {
     /// Read a sampler from a file image, checking every field.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, PersistError> {
         let mut r = ByteReader::new(open(bytes)?);
-        let kind = r.string("kind")?;
-        if kind != KIND {
-            return Err(PersistError::WrongKind {
-                found: kind,
-                expected: KIND.to_string(),
-            });
-        }
+        r.kind(KIND)?;
         let version = r.u32("outgoing version")?;
         if version != ANISOTROPIC_VERSION {
             let why = if version == TENSOR_VERSION {
