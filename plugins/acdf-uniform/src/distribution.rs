@@ -118,14 +118,14 @@ impl Guide {
     /// The number of entries of `cdf[..n - 1]` that are `<= u`, for the CDF
     /// the guide was built from and u in [0, 1).
     #[inline(always)]
-    fn count_at_or_below(&self, cdf: &[f32], u: f32) -> usize {
+    fn guided_count(&self, cdf: &[f32], u: f32) -> usize {
         if self.is_empty() {
             return count_sorted(&cdf[..cdf.len() - 1], u);
         }
         self.count_from_cell(cdf, u, self.cell(u))
     }
 
-    /// [`count_at_or_below`](Self::count_at_or_below) for a guide that
+    /// [`guided_count`](Self::guided_count) for a guide that
     /// exists, given g = [`cell`](Self::cell)`(u)`.
     #[inline(always)]
     fn count_from_cell(&self, cdf: &[f32], u: f32, g: usize) -> usize {
@@ -386,7 +386,7 @@ impl Distribution1D for PiecewiseConstant1D {
     #[inline]
     fn sample(&self, u: f32) -> Sample1D {
         let u = clamp_unit(u);
-        let k = self.guide.count_at_or_below(&self.cdf, u);
+        let k = self.guide.guided_count(&self.cdf, u);
         self.finish(k, u)
     }
 

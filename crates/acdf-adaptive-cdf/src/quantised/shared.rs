@@ -22,11 +22,12 @@
 //! ([`quantise`]).
 
 use super::packed::{
-    check_curve, check_offsets, conditional_masses, count_at_or_below, grid_indices, quantise,
-    Curve, Segment, Stored, Q, QF,
+    check_curve, check_offsets, conditional_masses, grid_indices, quantise, Curve, Segment, Stored,
+    Q, QF,
 };
 use crate::simplify::Simplifier;
 use crate::AdaptiveCdf2D;
+use acdf_core::search::count_one;
 #[cfg(target_arch = "x86_64")]
 use acdf_core::simd::shared_grid::SharedGrid;
 use acdf_core::{Error, Result};
@@ -392,7 +393,7 @@ impl SharedSlices {
         let (n_x, n_y) = n;
         let m = self.m;
         let ty = y * n_y;
-        let j = count_at_or_below(&self.grid, 1, m - 2, u16::key(ty));
+        let j = count_one(&self.grid, 1, m - 2, u16::key(ty));
         let sy = Segment {
             p: (self.grid[j] as f32, self.grid[j + 1] as f32),
             c: (0, 0),
@@ -403,7 +404,7 @@ impl SharedSlices {
             return (None, same_y);
         }
         let tx = x * n_x;
-        let i = count_at_or_below(&self.conditional_pos, a + 1, b - a - 2, u8::key(tx));
+        let i = count_one(&self.conditional_pos, a + 1, b - a - 2, u8::key(tx));
         let sx = Segment {
             p: (
                 self.conditional_pos[a + i] as f32,
