@@ -85,7 +85,7 @@ impl Stored for u8 {
 /// One curve of a slice: `len` positions from `pos` in `pos_data` and as
 /// many CDF values from `cdf` in `cdf_data`.
 #[derive(Clone, Copy)]
-pub struct Curve<'a, P> {
+pub struct QuantisedCurve<'a, P> {
     pub pos_data: &'a [P],
     pub pos: usize,
     pub cdf_data: &'a [u16],
@@ -93,7 +93,7 @@ pub struct Curve<'a, P> {
     pub len: usize,
 }
 
-impl<P: Stored> Curve<'_, P> {
+impl<P: Stored> QuantisedCurve<'_, P> {
     /// The positions and CDF values of vertices j and j + 1 (one bounds
     /// check each).
     #[inline(always)]
@@ -114,10 +114,10 @@ impl<P: Stored> Curve<'_, P> {
     /// density). The segment is the last vertex whose CDF is at or below u
     /// (zero-mass segments are never chosen).
     #[inline(always)]
-    pub fn sample(&self, n: f32, u: f32) -> (f32, usize, Segment) {
+    pub fn sample(&self, n: f32, u: f32) -> (f32, usize, QuantisedSegment) {
         let us = u * QF;
         let j = count_one(self.cdf_data, self.cdf + 1, self.len - 2, u16::key(us));
-        let s = Segment::new(self.segment(j));
+        let s = QuantisedSegment::new(self.segment(j));
         let (c0, c1) = (s.c.0 as f32, s.c.1 as f32);
         let frac = if c1 > c0 {
             ((us - c0) / (c1 - c0)).clamp(0.0, 1.0)
@@ -131,15 +131,15 @@ impl<P: Stored> Curve<'_, P> {
 
 /// One segment of a curve: its end positions (grid units) and CDF values.
 #[derive(Clone, Copy)]
-pub struct Segment {
+pub struct QuantisedSegment {
     pub p: (f32, f32),
     pub c: (u16, u16),
 }
 
-impl Segment {
+impl QuantisedSegment {
     #[inline(always)]
     fn new((p, c): ((f32, f32), (u16, u16))) -> Self {
-        Segment { p, c }
+        QuantisedSegment { p, c }
     }
 
     /// The density over [0, 1) of a curve over `n` cells.
@@ -280,8 +280,8 @@ impl PackedCdf2D {
 
     /// The marginal curve (of a validated slice).
     #[inline(always)]
-    fn marginal(&self) -> Curve<'_, u16> {
-        Curve {
+    fn marginal(&self) -> QuantisedCurve<'_, u16> {
+        QuantisedCurve {
             pos_data: &self.values,
             pos: 0,
             cdf_data: &self.values,
@@ -292,10 +292,10 @@ impl PackedCdf2D {
 
     /// Conditional j (of a validated slice, j a segment with mass).
     #[inline(always)]
-    fn conditional(&self, j: usize) -> Curve<'_, u8> {
+    fn conditional(&self, j: usize) -> QuantisedCurve<'_, u8> {
         let at = &self.values[self.offsets_at + j..self.offsets_at + j + 2];
         let (a, b) = (at[0] as usize, at[1] as usize);
-        Curve {
+        QuantisedCurve {
             pos_data: &self.conditional_pos,
             pos: a,
             cdf_data: &self.values,
@@ -334,7 +334,7 @@ impl PackedCdf2D {
         let marginal = self.marginal();
         let ty = y * n_y;
         let j = marginal.segment_of(ty);
-        let sy = Segment::new(marginal.segment(j));
+        let sy = QuantisedSegment::new(marginal.segment(j));
         let same_y = sy.inside(ty, margin.1 * n_y);
         if sy.c.1 == sy.c.0 {
             return Located {
@@ -345,7 +345,7 @@ impl PackedCdf2D {
         }
         let conditional = self.conditional(j);
         let tx = x * n_x;
-        let sx = Segment::new(conditional.segment(conditional.segment_of(tx)));
+        let sx = QuantisedSegment::new(conditional.segment(conditional.segment_of(tx)));
         Located {
             p: (x, y),
             pdf: sy.density(n_y) * sx.density(n_x),
