@@ -1,5 +1,10 @@
-//! The piecewise-linear CDF through a few vertices, shared by the 1D
-//! distribution and by every marginal and conditional of the 2D one.
+//! The piecewise-linear CDF through a few vertices, [`Curve`]: every
+//! marginal and conditional of the adaptive distributions, in `f32` (here)
+//! or quantised (the outgoing samplers' slices, [`crate::quantised`]). The
+//! environment tables' packed form ([`crate::packed_env`]) keeps its
+//! conditionals as (column, CDF value) pairs in one `u32` each, so that one
+//! window compare of pairs finds a segment; it shares the search and the
+//! `f32` segment arithmetic below.
 //!
 //! A curve of m vertices is stored as 2m `f32` values in a row: the vertex
 //! positions 0 = x_0 < x_1 < ... < x_{m-1} = 1, then the CDF values
@@ -10,12 +15,12 @@
 //! can never be reached.
 //!
 //! Sampling, density and inversion all locate the segment with the searches
-//! of [`crate::search`], which return exactly what a binary search would, and
+//! of [`acdf_core::search`], which return exactly what a binary search would, and
 //! every density is (c_{i+1} - c_i) / (x_{i+1} - x_i) in f32 by the one
 //! function `density_of`, so the pdf returned with a sample is bit-for-bit
 //! the pdf evaluated at that sample.
 
-use acdf_core::search::{count_at_or_below, count_one, Guide};
+use acdf_core::search::{count_at_or_below, count_one, Guide, Key};
 use acdf_core::{clamp_unit, Sample1D, ONE_MINUS_EPSILON};
 
 /// The largest f32 strictly below `v` (for v > 0 finite).
@@ -28,18 +33,59 @@ pub(crate) fn f32_below(v: f32) -> f32 {
     }
 }
 
-/// A borrowed curve: `len` vertex positions from `data[start]` on, then
-/// their `len` CDF values; see the module documentation.
+/// A borrowed piecewise-linear CDF of `len` vertices: positions x_0..x_{m-1}
+/// from `xs[x_at]` on and CDF values c_0..c_{m-1} from `cdfs[c_at]` on,
+/// in the units of their storage: `f32` values in [0, 1] (the adaptive
+/// distributions, where positions and CDF values share one buffer, see the
+/// module documentation), or grid indices (`u16`, `u8`) and multiples of
+/// 1/65535 (`u16`, the outgoing samplers' quantised slices, whose
+/// arithmetic is in [`crate::quantised`]). Both are searched by the
+/// workspace's one search ([`count_one`]).
 ///
-/// The curve is addressed inside its whole buffer (not as two slices) so
-/// that a short curve can be searched with a fixed-size window that also
+/// A curve is addressed inside its whole buffers (not as slices of its own)
+/// so that a short curve can be searched with a fixed-size window that also
 /// covers entries of the buffer around it (which are not counted).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Curve<'a> {
-    data: &'a [f32],
-    start: usize,
-    len: usize,
-    guide: Option<&'a CurveGuide>,
+pub struct Curve<'a, X = f32, C = f32> {
+    pub(crate) xs: &'a [X],
+    pub(crate) x_at: usize,
+    pub(crate) cdfs: &'a [C],
+    pub(crate) c_at: usize,
+    pub(crate) len: usize,
+    pub(crate) guide: Option<&'a CurveGuide>,
+}
+
+impl<'a, X: Key, C: Key> Curve<'a, X, C> {
+    /// The curve of `len` vertices with positions from `xs[x_at]` and CDF
+    /// values from `cdfs[c_at]`.
+    #[inline(always)]
+    pub fn new(xs: &'a [X], x_at: usize, cdfs: &'a [C], c_at: usize, len: usize) -> Self {
+        Curve {
+            xs,
+            x_at,
+            cdfs,
+            c_at,
+            len,
+            guide: None,
+        }
+    }
+
+    /// The number of inner positions x_1..x_{m-2} at or below `key`: the
+    /// segment holding a point at `key`, for a curve of at least two
+    /// vertices (x_0 and x_{m-1} need no comparison once the result is
+    /// kept in [0, m - 2]).
+    #[inline(always)]
+    pub fn positions_at_or_below(&self, key: X) -> usize {
+        count_one(self.xs, self.x_at + 1, self.len - 2, key)
+    }
+
+    /// The number of inner CDF values c_1..c_{m-2} at or below `key`: the
+    /// segment a draw with this key falls in, for a curve of at least two
+    /// vertices (c_0 = 0 <= key < c_{m-1}).
+    #[inline(always)]
+    pub fn cdfs_at_or_below(&self, key: C) -> usize {
+        count_one(self.cdfs, self.c_at + 1, self.len - 2, key)
+    }
 }
 
 /// The number of equal intervals of a [`CurveGuide`]: 32, so that its
@@ -95,12 +141,7 @@ impl<'a> Curve<'a> {
     /// values.
     #[inline(always)]
     pub fn whole(data: &'a [f32]) -> Self {
-        Curve {
-            data,
-            start: 0,
-            len: data.len() / 2,
-            guide: None,
-        }
+        Self::within(data, 0, data.len() / 2)
     }
 
     /// [`whole`](Self::whole) with the curve's [`CurveGuide`].
@@ -117,22 +158,17 @@ impl<'a> Curve<'a> {
     #[inline(always)]
     pub fn within(data: &'a [f32], start: usize, len: usize) -> Self {
         debug_assert!(start + 2 * len <= data.len());
-        Curve {
-            data,
-            start,
-            len,
-            guide: None,
-        }
+        Curve::new(data, start, data, start + len, len)
     }
 
     /// The vertex positions x_0, ..., x_{m-1}.
     pub fn xs(&self) -> &'a [f32] {
-        &self.data[self.start..self.start + self.len]
+        &self.xs[self.x_at..self.x_at + self.len]
     }
 
     /// The CDF values c_0, ..., c_{m-1}.
     pub fn cdfs(&self) -> &'a [f32] {
-        &self.data[self.start + self.len..self.start + 2 * self.len]
+        &self.cdfs[self.c_at..self.c_at + self.len]
     }
 
     #[inline(always)]
@@ -142,12 +178,12 @@ impl<'a> Curve<'a> {
 
     #[inline(always)]
     fn x(&self, i: usize) -> f32 {
-        self.data[self.start + i]
+        self.xs[self.x_at + i]
     }
 
     #[inline(always)]
     fn c(&self, i: usize) -> f32 {
-        self.data[self.start + self.len + i]
+        self.cdfs[self.c_at + i]
     }
 
     /// The density of segment i, [`segment_density`].
@@ -170,12 +206,9 @@ impl<'a> Curve<'a> {
     /// The segment i with x_i <= x < x_{i+1} (the last segment for x >= 1,
     /// the first for x < 0 or NaN), for a curve of at least two vertices.
     ///
-    /// It is the number of inner positions x_1, ..., x_{m-2} at or below x:
-    /// x_0 = 0 and x_{m-1} = 1 need no comparison once the result is kept
-    /// in [0, m - 2].
     #[inline(always)]
     pub fn segment_of(&self, x: f32) -> usize {
-        count_one(self.data, self.start + 1, self.len - 2, x)
+        self.positions_at_or_below(x)
     }
 
     /// The segment i with c_i <= u < c_{i+1} for u in [0, 1) (a zero-mass
@@ -184,13 +217,14 @@ impl<'a> Curve<'a> {
     /// below u, since c_0 = 0 <= u < 1 = c_{m-1}.
     #[inline(always)]
     pub fn segment_of_u(&self, u: f32) -> usize {
-        let start = self.start + self.len + 1;
         match self.guide {
-            Some(g) if !g.cdfs.is_empty() => {
-                g.cdfs
-                    .count(self.data, start, u, Guide::cell(u, CURVE_GUIDE_CELLS))
-            }
-            _ => count_one(self.data, start, self.len - 2, u),
+            Some(g) if !g.cdfs.is_empty() => g.cdfs.count(
+                self.cdfs,
+                self.c_at + 1,
+                u,
+                Guide::cell(u, CURVE_GUIDE_CELLS),
+            ),
+            _ => self.cdfs_at_or_below(u),
         }
     }
 
@@ -198,7 +232,7 @@ impl<'a> Curve<'a> {
     /// four-way search (the lanes' loads overlap).
     #[inline(always)]
     pub fn segments_of_u<const L: usize>(&self, u: [f32; L]) -> [usize; L] {
-        count_at_or_below(self.data, self.start + self.len + 1, self.len - 2, u)
+        count_at_or_below(self.cdfs, self.c_at + 1, self.len - 2, u)
     }
 
     /// x = P^{-1}(u), the segment i it lies in and that segment's ends (u

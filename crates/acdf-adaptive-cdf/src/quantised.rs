@@ -12,6 +12,6 @@ mod shared;
 
 pub use packed::{
     check_curve, check_offsets, conditional_masses, grid_indices, quantise, PackedCdf2D,
-    QuantisedCurve, QuantisedSegment, Stored, Q, QF,
+    QuantisedSegment, Stored, Q, QF,
 };
 pub use shared::{GridCell, GridDraw, SharedSlices};

@@ -2,8 +2,9 @@
 //! [`AdaptiveCdf2D`]'s kept vertices as grid indices (16 bits along θ_h, 8
 //! along φ_h) and 16-bit CDF values, sampled and evaluated in that form.
 
+use crate::curve::Curve;
 use crate::AdaptiveCdf2D;
-use acdf_core::search::{count_one, Key};
+use acdf_core::search::Key;
 use acdf_core::{Error, Result};
 
 /// The largest quantised CDF value: a CDF value c is stored as
@@ -51,7 +52,8 @@ pub struct PackedCdf2D {
 }
 
 /// A stored vertex position or CDF value: an unsigned integer, searched
-/// with the workspace's one search ([`count_one`]).
+/// with the workspace's one search
+/// ([`count_one`](acdf_core::search::count_one)).
 pub trait Stored: Key {
     /// The value as a float.
     fn float(self) -> f32;
@@ -82,24 +84,15 @@ impl Stored for u8 {
     }
 }
 
-/// One curve of a slice: `len` positions from `pos` in `pos_data` and as
-/// many CDF values from `cdf` in `cdf_data`.
-#[derive(Clone, Copy)]
-pub struct QuantisedCurve<'a, P> {
-    pub pos_data: &'a [P],
-    pub pos: usize,
-    pub cdf_data: &'a [u16],
-    pub cdf: usize,
-    pub len: usize,
-}
-
-impl<P: Stored> QuantisedCurve<'_, P> {
+/// The quantised curves' arithmetic: positions in grid units (`P`), CDF
+/// values in units of 1/65535.
+impl<P: Stored> Curve<'_, P, u16> {
     /// The positions and CDF values of vertices j and j + 1 (one bounds
     /// check each).
     #[inline(always)]
     fn segment(&self, j: usize) -> ((f32, f32), (u16, u16)) {
-        let p = &self.pos_data[self.pos + j..self.pos + j + 2];
-        let c = &self.cdf_data[self.cdf + j..self.cdf + j + 2];
+        let p = &self.xs[self.x_at + j..self.x_at + j + 2];
+        let c = &self.cdfs[self.c_at + j..self.c_at + j + 2];
         ((p[0].float(), p[1].float()), (c[0], c[1]))
     }
 
@@ -107,7 +100,7 @@ impl<P: Stored> QuantisedCurve<'_, P> {
     /// vertices at or below it.
     #[inline(always)]
     fn segment_of(&self, t: f32) -> usize {
-        count_one(self.pos_data, self.pos + 1, self.len - 2, P::key(t))
+        self.positions_at_or_below(P::key(t))
     }
 
     /// Invert the curve at u in [0, 1): (position in [0, 1), segment, its
@@ -116,7 +109,7 @@ impl<P: Stored> QuantisedCurve<'_, P> {
     #[inline(always)]
     pub fn sample(&self, n: f32, u: f32) -> (f32, usize, QuantisedSegment) {
         let us = u * QF;
-        let j = count_one(self.cdf_data, self.cdf + 1, self.len - 2, u16::key(us));
+        let j = self.cdfs_at_or_below(u16::key(us));
         let s = QuantisedSegment::new(self.segment(j));
         let (c0, c1) = (s.c.0 as f32, s.c.1 as f32);
         let frac = if c1 > c0 {
@@ -280,28 +273,18 @@ impl PackedCdf2D {
 
     /// The marginal curve (of a validated slice).
     #[inline(always)]
-    fn marginal(&self) -> QuantisedCurve<'_, u16> {
-        QuantisedCurve {
-            pos_data: &self.values,
-            pos: 0,
-            cdf_data: &self.values,
-            cdf: self.marginal_cdf_at,
-            len: self.marginal_cdf_at,
-        }
+    fn marginal(&self) -> Curve<'_, u16, u16> {
+        let len = self.marginal_cdf_at;
+        Curve::new(&self.values, 0, &self.values, self.marginal_cdf_at, len)
     }
 
     /// Conditional j (of a validated slice, j a segment with mass).
     #[inline(always)]
-    fn conditional(&self, j: usize) -> QuantisedCurve<'_, u8> {
+    fn conditional(&self, j: usize) -> Curve<'_, u8, u16> {
         let at = &self.values[self.offsets_at + j..self.offsets_at + j + 2];
         let (a, b) = (at[0] as usize, at[1] as usize);
-        QuantisedCurve {
-            pos_data: &self.conditional_pos,
-            pos: a,
-            cdf_data: &self.values,
-            cdf: self.conditional_cdf_at + a,
-            len: b - a,
-        }
+        let c_at = self.conditional_cdf_at + a;
+        Curve::new(&self.conditional_pos, a, &self.values, c_at, b - a)
     }
 
     /// Draw (x, y) from u in [0, 1)^2: y from the marginal with u.y, x from
@@ -556,7 +539,7 @@ mod tests {
                         .filter(|&&p| p <= key)
                         .count();
                     assert_eq!(
-                        count_one(&noise, start, len, key),
+                        acdf_core::search::count_one(&noise, start, len, key),
                         expected,
                         "{len} of {total} from {start}, key {key:?}"
                     );

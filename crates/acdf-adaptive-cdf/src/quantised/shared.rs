@@ -22,9 +22,10 @@
 //! ([`quantise`]).
 
 use super::packed::{
-    check_curve, check_offsets, conditional_masses, grid_indices, quantise, QuantisedCurve,
-    QuantisedSegment, Stored, Q, QF,
+    check_curve, check_offsets, conditional_masses, grid_indices, quantise, QuantisedSegment,
+    Stored, Q, QF,
 };
+use crate::curve::Curve;
 use crate::simplify::Simplifier;
 use crate::AdaptiveCdf2D;
 use acdf_core::search::count_one;
@@ -318,14 +319,8 @@ impl SharedSlices {
 
     /// The marginal curve of slice `s`.
     #[inline(always)]
-    fn marginal(&self, s: usize) -> QuantisedCurve<'_, u16> {
-        QuantisedCurve {
-            pos_data: &self.grid,
-            pos: 0,
-            cdf_data: &self.cdf,
-            cdf: s * self.stride,
-            len: self.m,
-        }
+    fn marginal(&self, s: usize) -> Curve<'_, u16, u16> {
+        Curve::new(&self.grid, 0, &self.cdf, s * self.stride, self.m)
     }
 
     /// Where conditional j starts and ends in the conditional arrays.
@@ -365,13 +360,8 @@ impl SharedSlices {
         let (n_x, n_y) = n;
         let (y, j, sy) = self.marginal(s).sample(n_y, u_y);
         let (a, b) = self.conditional_range(j);
-        let conditional = QuantisedCurve {
-            pos_data: &self.conditional_pos,
-            pos: a,
-            cdf_data: &self.cdf,
-            cdf: s * self.stride + self.m + a,
-            len: b - a,
-        };
+        let c_at = s * self.stride + self.m + a;
+        let conditional = Curve::new(&self.conditional_pos, a, &self.cdf, c_at, b - a);
         let (x, i, sx) = conditional.sample(n_x, u_x);
         GridDraw {
             p: (x, y),
