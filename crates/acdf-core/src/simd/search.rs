@@ -113,10 +113,16 @@ pub fn count_at_or_below<K: Key, const L: usize>(
 }
 
 /// The number of entries of the non-decreasing `data[start..start + len]`
-/// that are `<= key` ([`count_at_or_below`] for one key).
+/// that are `<= key`: [`count_at_or_below`] for one key, with the short
+/// list (one window, the common case) tested first, ahead of the four-way
+/// search's set-up.
 #[inline(always)]
 pub fn count_one<K: Key>(data: &[K], start: usize, len: usize, key: K) -> usize {
-    count_at_or_below(data, start, len, [key])[0]
+    if len <= WINDOW && data.len() >= WINDOW {
+        count_window(data, start, len, key)
+    } else {
+        count_at_or_below(data, start, len, [key])[0]
+    }
 }
 
 /// The number of entries of the non-decreasing `list` that are `<= key`.
