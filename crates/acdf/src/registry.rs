@@ -25,6 +25,7 @@ use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler};
 use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
+use acdf_lobes::LobesSampler;
 use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_outgoing::FINE_PER_CELL;
 use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
@@ -110,6 +111,21 @@ pub trait SamplerOps {
 }
 
 impl SamplerOps for CosineSampler {}
+
+impl SamplerOps for LobesSampler {
+    fn resolution_label(&self) -> String {
+        format!("{} GGX", self.lobes().count())
+    }
+    fn material_name(&self) -> Option<&str> {
+        Some(&self.material().name)
+    }
+    fn material_fingerprint(&self) -> Option<u64> {
+        Some(self.material().fingerprint)
+    }
+    fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
+        Some(self.save(path))
+    }
+}
 
 impl SamplerOps for RglSampler {
     fn resolution_label(&self) -> String {
@@ -260,6 +276,8 @@ any_sampler! {
     Adaptive(AdaptiveBrdfSampler),
     /// `rgl`: the RGL `.bsdf` file's own sampler.
     Rgl(RglSampler),
+    /// `lobes`: a cosine lobe and one to three GGX lobes fitted per material.
+    Lobes(LobesSampler),
     /// `outgoing:SIMPLIFIER`: θ_o breakpoints per material, blended slices.
     Outgoing(OutgoingSampler),
     /// `outgoing:SIMPLIFIER` for an anisotropic material: θ_o × φ_o
@@ -425,6 +443,17 @@ pub static SAMPLERS: &[SamplerFamily] = &[
             None => Err(incompatible(spec, m)),
         },
         load: None,
+    },
+    SamplerFamily {
+        name: acdf_lobes::persist::KIND,
+        description: "a cosine lobe and 1 to 3 GGX lobes fitted per material, 32 bytes",
+        simplifiers: false,
+        report_rank: Some(4),
+        in_render: false,
+        requires: None,
+        file_kind: Some(acdf_lobes::persist::KIND),
+        build: |_, m, _| Ok(LobesSampler::new(m.brdf.as_ref())?.into()),
+        load: Some(|bytes| Ok(LobesSampler::from_bytes(bytes)?.into())),
     },
 ];
 
@@ -934,7 +963,8 @@ mod tests {
                 "adaptive:rw",
                 "adaptive:optimal",
                 "adaptive:chi2",
-                "cosine"
+                "cosine",
+                "lobes"
             ]
         );
         assert_eq!(
