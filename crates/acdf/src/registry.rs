@@ -757,7 +757,7 @@ fn render_families() -> Vec<&'static SamplerFamily> {
 
 /// The samplers a report compares for `material` by default: the families
 /// with a `report_rank`, in rank order (uniform, the adaptive simplifiers
-/// marked `in_report`, cosine, and `rgl` for RGL materials).
+/// marked `in_report`, cosine, `rgl` for RGL materials, and lobes).
 pub fn report_samplers(material: &Material) -> Vec<SamplerSpec> {
     report_families()
         .into_iter()
@@ -778,8 +778,8 @@ pub fn render_samplers(material: &Material) -> Vec<SamplerSpec> {
 }
 
 /// The samplers of every family without simplifiers that can be used with
-/// `material`, in the table's order (`cosine`, `uniform`, and `rgl` for
-/// RGL materials): with every simplifier of the adaptive family, the
+/// `material`, in the table's order (`cosine`, `uniform`, `rgl` for RGL
+/// materials, and `lobes`): with every simplifier of the adaptive family, the
 /// samplers the registry knows.
 pub fn plain_samplers(material: &Material) -> Vec<SamplerSpec> {
     SAMPLERS

@@ -19,6 +19,9 @@
 //! share is the mass the density does not cover.
 
 #![forbid(unsafe_code)]
+// `!(x > 0.0)` is how this crate says "not positive, or NaN": the negated
+// comparison is the point, since NaN must take the rejecting branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod fit;
 pub mod persist;
@@ -183,10 +186,7 @@ impl Mixture {
             probability[k] = cumulative[k] - low;
             low = cumulative[k];
         }
-        let mut alpha2 = [0.0; MAX_LOBES];
-        for k in 0..n {
-            alpha2[k] = lobes.alphas[k] * lobes.alphas[k];
-        }
+        let alpha2 = lobes.alphas.map(|a| a * a);
         Mixture {
             lobes,
             cumulative,

@@ -1,6 +1,6 @@
 use super::*;
 use acdf_core::geometry::spherical_direction;
-use acdf_core::{Brdf, HemisphereGrid, Rgb};
+use acdf_core::{Brdf, Rgb};
 use acdf_tabulated::persist::{seal, ByteWriter, PersistError};
 use rand::{Rng, SeedableRng};
 use std::sync::Arc;
@@ -241,48 +241,4 @@ fn a_zero_material_is_a_typed_error() {
         }
     }
     assert!(matches!(fit(&Zero), Err(Error::ZeroMaterial { .. })));
-}
-
-#[test]
-#[ignore]
-fn scratch_print_fits() {
-    let library = acdf_materials::nbrdf::NbrdfLibrary::load_shared().unwrap();
-    let names: Vec<String> = std::env::var("MATS")
-        .unwrap()
-        .split(',')
-        .map(String::from)
-        .collect();
-    for name in names {
-        let brdf: Arc<dyn Brdf> = Arc::new(library.material(&name).unwrap().bake());
-        let t = std::time::Instant::now();
-        let f = fit_with(brdf.as_ref(), &FitOptions::default()).unwrap();
-        let fine = FitOptions {
-            grid: HemisphereGrid::HalfVector {
-                n_v: 1024,
-                n_x: 256,
-            },
-            ..FitOptions::default()
-        };
-        println!(
-            "{name}: {:?} {:.2}s fine-grid objective {}",
-            f,
-            t.elapsed().as_secs_f64(),
-            objective(brdf.as_ref(), &f.lobes, &fine).unwrap()
-        );
-        for th in [10.0, 30.0, 50.0, 70.0, 85.0] {
-            let one = FitOptions {
-                theta_o_degrees: vec![th],
-                grid: HemisphereGrid::HalfVector {
-                    n_v: 1024,
-                    n_x: 256,
-                },
-                ..FitOptions::default()
-            };
-            print!(
-                " {th}:{:.3}",
-                objective(brdf.as_ref(), &f.lobes, &one).unwrap()
-            );
-        }
-        println!();
-    }
 }
