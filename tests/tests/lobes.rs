@@ -19,6 +19,8 @@ use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_lobes::{Lobes, LobesSampler, Mixture};
 use std::sync::Arc;
 
+mod shared;
+
 fn config() -> SamplerConfig {
     SamplerConfig {
         samples: 200_000,
@@ -53,17 +55,9 @@ fn measured(label: &str, brdf: Arc<dyn Brdf>) {
 }
 
 fn nbrdf(name: &str) {
-    let library = match acdf_materials::nbrdf::NbrdfLibrary::load_shared() {
-        Ok(library) => library,
-        Err(e) => {
-            acdf_materials::testing::skip_without_data(format_args!(
-                "the Neural-BRDF data is not available ({e})"
-            ));
-            return;
-        }
-    };
-    let network = library.material(name).expect("a material of the file");
-    measured(&format!("lobes_nbrdf_{name}"), Arc::new(network.bake()));
+    if let Some(brdf) = shared::nbrdf(name) {
+        measured(&format!("lobes_nbrdf_{name}"), brdf);
+    }
 }
 
 #[test]
@@ -82,19 +76,9 @@ fn lobes_nbrdf_blue_metallic_paint() {
 }
 
 fn rgl(stem: &str) {
-    let Some(dir) = acdf_materials::rgl::shared_dir() else {
-        acdf_materials::testing::skip_without_data(
-            "shared RGL data not found (set ACDF_SHARED_DATA)",
-        );
-        return;
-    };
-    let path = dir.join(format!("{stem}.bsdf"));
-    if !path.is_file() {
-        acdf_materials::testing::skip_without_data(format_args!("{} not found", path.display()));
-        return;
+    if let Some(brdf) = shared::rgl(stem) {
+        measured(&format!("lobes_rgl_{stem}"), brdf);
     }
-    let brdf = Arc::new(acdf_rgl::RglBrdf::open(&path).expect("the shared RGL file loads"));
-    measured(&format!("lobes_rgl_{stem}"), brdf);
 }
 
 #[test]
@@ -153,4 +137,13 @@ fn rejects_a_mixture_with_one_weight_changed() {
         &config,
     );
     assert_rejected(&report, Check::ChiSquare);
+}
+
+/// A material that reflects nothing has nothing to fit: a typed error.
+#[test]
+fn a_zero_material_is_a_typed_error() {
+    assert!(matches!(
+        LobesSampler::new(&brdfs::ZeroBrdf),
+        Err(acdf_core::Error::ZeroMaterial { .. })
+    ));
 }

@@ -13,7 +13,7 @@
 //! The parameters searched are, for n GGX lobes, the n values ln α_k and n
 //! logits s_k of a softmax whose cosine-lobe logit is 0: the weights are
 //! w_d = m + (1 − m) q_0 and w_k = (1 − m) q_k, q the softmax and m
-//! [`MIN_DIFFUSE`](crate::MIN_DIFFUSE). One lobe starts from the best of a
+//! [`MIN_DIFFUSE`]. One lobe starts from the best of a
 //! grid of α and weights, each further lobe from the best fit with one lobe
 //! fewer and a new lobe sharper or broader than the others; each is
 //! refined by Nelder–Mead for a fixed number of iterations. Every step is

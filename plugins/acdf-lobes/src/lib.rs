@@ -3,7 +3,7 @@
 //! with their weights, fitted to the material's f_r cos θ_i so as to
 //! minimise the variance of the one-sample estimator of ∫ f_r cos θ_i dω_i
 //! (the chi-square divergence between f_r cos θ_i, normalised per outgoing
-//! direction, and the mixture's density; see [`fit`]). The whole sampler is
+//! direction, and the mixture's density; see [`mod@fit`]). The whole sampler is
 //! [`STORAGE_BYTES`] bytes of parameters, its sampling and its density are
 //! analytic and exact, and it is saved and loaded like the tabulated
 //! samplers ([`persist`]). It samples a measured material much worse than a

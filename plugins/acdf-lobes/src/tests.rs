@@ -224,21 +224,3 @@ fn grazing_and_extreme_u_give_no_nan() {
         assert_eq!(s.pdf(wo, Vec3::Z), 0.0);
     }
 }
-
-/// A material that reflects nothing has nothing to fit.
-#[test]
-fn a_zero_material_is_a_typed_error() {
-    struct Zero;
-    impl Brdf for Zero {
-        fn name(&self) -> &str {
-            "zero"
-        }
-        fn eval(&self, _: Vec3, _: Vec3) -> Rgb {
-            Rgb::ZERO
-        }
-        fn is_isotropic(&self) -> bool {
-            true
-        }
-    }
-    assert!(matches!(fit(&Zero), Err(Error::ZeroMaterial { .. })));
-}
