@@ -1108,6 +1108,30 @@ mod tests {
         assert!(make_sampler("uniform", &aniso, &SamplerOptions::default()).is_ok());
     }
 
+    /// A lobes sampler saves and loads through the registry with the same
+    /// draws, and its file is refused for another material.
+    #[test]
+    fn lobes_files_load_with_the_same_draws() {
+        let m = nickel();
+        let s = make_sampler("lobes", &m, &SamplerOptions::default()).unwrap();
+        assert_eq!(s.storage_bytes(), acdf_lobes::STORAGE_BYTES);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lobes.acdfs");
+        save_sampler(&s, &path).unwrap();
+        let loaded = load_sampler_for(&path, &m).unwrap();
+        assert!(matches!(loaded, AnySampler::Lobes(_)));
+        let wo = Vec3::new(0.3, -0.4, 0.8).normalize();
+        for k in 0..50 {
+            let u = Vec2::new((k as f32 + 0.5) / 50.0, (k as f32 * 0.618).fract());
+            assert_eq!(loaded.sample(wo, u), s.sample(wo, u));
+        }
+        let lambert = load_material(&MaterialSpec::Builtin("lambert".into()), None).unwrap();
+        assert!(matches!(
+            load_sampler_for(&path, &lambert),
+            Err(Error::SamplerMaterialMismatch { .. })
+        ));
+    }
+
     /// `outgoing:SIMPLIFIER` builds the anisotropic outgoing sampler for an
     /// anisotropic material (the isotropic one for an isotropic material),
     /// and its file loads back as the same variant with the same draws.

@@ -6,10 +6,11 @@
 //! direction, and the mixture's density; see [`mod@fit`]). The whole sampler is
 //! [`STORAGE_BYTES`] bytes of parameters, its sampling and its density are
 //! analytic and exact, and it is saved and loaded like the tabulated
-//! samplers ([`persist`]). It samples a measured material much worse than a
-//! table where the material is not lobe-shaped, but it never misses light:
-//! its cosine lobe keeps at least [`MIN_DIFFUSE`] of the draws, which makes
-//! it the natural defensive partner of the tables.
+//! samplers ([`persist`]). Where a material is not shaped like its lobes
+//! (the mirror-like metals, a narrow peak on a broad halo) it samples much
+//! worse than a table, but it never misses light: its cosine lobe keeps at
+//! least [`MIN_DIFFUSE`] of the draws, which makes it the natural defensive
+//! partner of the tables.
 //!
 //! Each GGX lobe draws the half vector h from the distribution of visible
 //! normals seen from wo, D_wo(h) = G1(wo) max(0, wo·h) D(h) / cos θ_o, and
