@@ -170,15 +170,17 @@ pub struct Mixture {
 
 impl Mixture {
     /// The mixture of `lobes`: component k is drawn with the probability
-    /// its weight gives, the last taking what the `f32` sums leave of 1.
+    /// its weight gives, the last taking what the `f32` sums leave of 1
+    /// (the sums capped at 1, so that no probability is negative when the
+    /// weights sum to a little more).
     pub fn new(lobes: Lobes) -> Mixture {
         let n = lobes.count();
         let mut cumulative = [1.0f32; MAX_LOBES + 1];
         let mut probability = [0.0f32; MAX_LOBES + 1];
-        let mut sum = lobes.diffuse;
+        let mut sum = lobes.diffuse.min(1.0);
         cumulative[0] = sum;
         for k in 0..n {
-            sum += lobes.weights[k];
+            sum = (sum + lobes.weights[k]).min(1.0);
             cumulative[k + 1] = sum;
         }
         cumulative[n] = 1.0;

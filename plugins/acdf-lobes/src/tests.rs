@@ -179,6 +179,21 @@ fn bad_parameters_are_refused() {
     assert_eq!(ok.count(), 3);
 }
 
+/// Weights that sum to a little more than 1 (within the constructor's
+/// tolerance) with a last lobe of weight 0 give that lobe probability 0,
+/// not a negative one: every density is non-negative.
+#[test]
+fn weights_summing_past_1_give_no_negative_density() {
+    let lobes = Lobes::new(0.5, &[(0.50009, 0.1), (0.0, 0.01)]).unwrap();
+    let s = Mixture::new(lobes);
+    assert!(s.probability.iter().all(|&p| p >= 0.0), "{s:?}");
+    let wo = spherical_direction(0.5, 0.2);
+    for k in 0..100 {
+        let wi = spherical_direction(1.5 * k as f32 / 100.0, 0.2);
+        assert!(s.pdf(wo, wi) >= 0.0);
+    }
+}
+
 /// At grazing wo and u next to 1 (and outside [0, 1)) every draw is valid
 /// and agrees with `pdf`; nothing is NaN.
 #[test]
