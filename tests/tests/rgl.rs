@@ -39,8 +39,9 @@
 //! table.
 
 use acdf_conformance::{check_sampler, distribution_2d_battery, DistributionConfig, SamplerConfig};
-use acdf_rgl::{Bilinear2D, RglBrdf, RglSampler};
-use std::sync::Arc;
+use acdf_rgl::{Bilinear2D, RglSampler};
+
+mod shared;
 
 fn config() -> SamplerConfig {
     SamplerConfig {
@@ -53,18 +54,9 @@ fn config() -> SamplerConfig {
 }
 
 fn run(stem: &str) {
-    let Some(dir) = acdf_materials::rgl::shared_dir() else {
-        acdf_materials::testing::skip_without_data(
-            "shared RGL data not found (set ACDF_SHARED_DATA)",
-        );
+    let Some(brdf) = shared::rgl(stem) else {
         return;
     };
-    let path = dir.join(format!("{stem}.bsdf"));
-    if !path.is_file() {
-        acdf_materials::testing::skip_without_data(format_args!("{} not found", path.display()));
-        return;
-    }
-    let brdf = Arc::new(RglBrdf::open(&path).expect("the shared RGL file loads"));
     let sampler = RglSampler::new(brdf.clone());
     let report = check_sampler(&format!("rgl_{stem}"), &sampler, Some(&*brdf), &config());
     report.print();

@@ -28,6 +28,8 @@ use acdf_tabulated::Resolution;
 use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
 use std::sync::Arc;
 
+mod shared;
+
 const THETA_O_DEGREES: [f32; 10] = [0.0, 0.05, 0.087, 30.0, 60.0, 70.0, 80.0, 85.0, 89.0, 89.5];
 const BOUND: f64 = 1e-7;
 
@@ -67,17 +69,9 @@ fn check(label: &str, brdf: Arc<dyn Brdf>) {
 }
 
 fn nbrdf(name: &str) {
-    let library = match acdf_materials::nbrdf::NbrdfLibrary::load_shared() {
-        Ok(library) => library,
-        Err(e) => {
-            acdf_materials::testing::skip_without_data(format_args!(
-                "the Neural-BRDF data is not available ({e})"
-            ));
-            return;
-        }
-    };
-    let network = library.material(name).expect("a material of the file");
-    check(&format!("nbrdf:{name}"), Arc::new(network.bake()));
+    if let Some(brdf) = shared::nbrdf(name) {
+        check(&format!("nbrdf:{name}"), brdf);
+    }
 }
 
 #[test]

@@ -407,6 +407,7 @@ fn report_prints_a_table_and_writes_json() {
         "adaptive:optimal",
         "adaptive:chi2",
         "cosine",
+        "lobes",
     ] {
         assert!(
             out.lines()
@@ -417,7 +418,7 @@ fn report_prints_a_table_and_writes_json() {
     assert!(!out.contains("NaN") && !out.contains("inf"), "{out}");
     let rows = read_json(&json);
     let rows = rows.as_array().unwrap();
-    assert_eq!(rows.len(), 7);
+    assert_eq!(rows.len(), 8);
     for r in rows {
         for key in [
             "material",
@@ -725,17 +726,18 @@ fn sweep_writes_csv_json_svg_and_png() {
         .unwrap()
         .starts_with("material,sampler,tolerance,resolution,is_reference"));
     let rows: Vec<&str> = lines.collect();
-    // uniform and cosine, then each simplifier at each tolerance as
-    // adaptive:S and (the material being isotropic) outgoing:S.
-    assert_eq!(rows.len(), 2 + 2 * 2 * 2);
+    // uniform, cosine and lobes, then each simplifier at each tolerance
+    // as adaptive:S and (the material being isotropic) outgoing:S.
+    assert_eq!(rows.len(), 3 + 2 * 2 * 2);
     assert!(rows.iter().any(|r| r.starts_with("nickel,outgoing:dp,")));
     assert!(rows[0].starts_with("nickel,uniform,"));
     assert!(rows[1].starts_with("nickel,cosine,"));
+    assert!(rows[2].starts_with("nickel,lobes,"));
     let csv = std::fs::read_to_string(dir.path().join("sweep-nickel.csv")).unwrap();
     assert_eq!(csv, out);
     let json = read_json(&dir.path().join("sweep-nickel.json"));
     let points = json.as_array().unwrap();
-    assert_eq!(points.len(), 10);
+    assert_eq!(points.len(), 11);
     // A looser tolerance keeps fewer vertices, so it stores less.
     let dp: Vec<u64> = points
         .iter()

@@ -2,7 +2,7 @@
 //! a range of tolerances (and, for isotropic materials, the outgoing
 //! sampler with the same simplifiers, its tolerances scaled as its default
 //! is), with every other sampler the registry knows
-//! (uniform, cosine, and `rgl` for RGL materials) as reference points, each
+//! (uniform, cosine, lobes, and `rgl` for RGL materials) as reference points, each
 //! with its storage, time and the noise-free relative variance, firefly
 //! measure and efficiency of [`efficiency`](crate::efficiency), relative to
 //! a reference sampler.

@@ -325,6 +325,7 @@ def test_report_and_sweep_as_python_data() -> None:
     assert [(p["sampler"], p["tolerance"]) for p in points] == [
         ("uniform", None),
         ("cosine", None),
+        ("lobes", None),
         ("adaptive:chi2", 1e-3),
         ("adaptive:chi2", 1e-2),
         # The outgoing sampler's front, at its own scale of the tolerances
@@ -332,7 +333,7 @@ def test_report_and_sweep_as_python_data() -> None:
         ("outgoing:chi2", pytest.approx(2e-3)),
         ("outgoing:chi2", pytest.approx(2e-2)),
     ]
-    assert points[2]["storage_bytes"] > points[3]["storage_bytes"]
+    assert points[3]["storage_bytes"] > points[4]["storage_bytes"]
     with pytest.raises(acdf.UnknownNameError):
         acdf.sweep("builtin:nickel", ["nope"], **quick)
     with pytest.raises(acdf.InvalidArgumentError):

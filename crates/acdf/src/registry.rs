@@ -25,6 +25,7 @@ use acdf_adaptive::{average_resolution, AdaptiveBrdfSampler};
 use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_cosine::CosineSampler;
+use acdf_lobes::LobesSampler;
 use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_outgoing::FINE_PER_CELL;
 use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
@@ -110,6 +111,21 @@ pub trait SamplerOps {
 }
 
 impl SamplerOps for CosineSampler {}
+
+impl SamplerOps for LobesSampler {
+    fn resolution_label(&self) -> String {
+        format!("{} GGX", self.lobes().count())
+    }
+    fn material_name(&self) -> Option<&str> {
+        Some(&self.material().name)
+    }
+    fn material_fingerprint(&self) -> Option<u64> {
+        Some(self.material().fingerprint)
+    }
+    fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
+        Some(self.save(path))
+    }
+}
 
 impl SamplerOps for RglSampler {
     fn resolution_label(&self) -> String {
@@ -260,6 +276,8 @@ any_sampler! {
     Adaptive(AdaptiveBrdfSampler),
     /// `rgl`: the RGL `.bsdf` file's own sampler.
     Rgl(RglSampler),
+    /// `lobes`: a cosine lobe and one to three GGX lobes fitted per material.
+    Lobes(LobesSampler),
     /// `outgoing:SIMPLIFIER`: θ_o breakpoints per material, blended slices.
     Outgoing(OutgoingSampler),
     /// `outgoing:SIMPLIFIER` for an anisotropic material: θ_o × φ_o
@@ -425,6 +443,17 @@ pub static SAMPLERS: &[SamplerFamily] = &[
             None => Err(incompatible(spec, m)),
         },
         load: None,
+    },
+    SamplerFamily {
+        name: acdf_lobes::persist::KIND,
+        description: "a cosine lobe and 1 to 3 GGX lobes fitted per material, 32 bytes",
+        simplifiers: false,
+        report_rank: Some(4),
+        in_render: false,
+        requires: None,
+        file_kind: Some(acdf_lobes::persist::KIND),
+        build: |_, m, _| Ok(LobesSampler::new(m.brdf.as_ref())?.into()),
+        load: Some(|bytes| Ok(LobesSampler::from_bytes(bytes)?.into())),
     },
 ];
 
@@ -728,7 +757,7 @@ fn render_families() -> Vec<&'static SamplerFamily> {
 
 /// The samplers a report compares for `material` by default: the families
 /// with a `report_rank`, in rank order (uniform, the adaptive simplifiers
-/// marked `in_report`, cosine, and `rgl` for RGL materials).
+/// marked `in_report`, cosine, `rgl` for RGL materials, and lobes).
 pub fn report_samplers(material: &Material) -> Vec<SamplerSpec> {
     report_families()
         .into_iter()
@@ -749,8 +778,8 @@ pub fn render_samplers(material: &Material) -> Vec<SamplerSpec> {
 }
 
 /// The samplers of every family without simplifiers that can be used with
-/// `material`, in the table's order (`cosine`, `uniform`, and `rgl` for
-/// RGL materials): with every simplifier of the adaptive family, the
+/// `material`, in the table's order (`cosine`, `uniform`, `rgl` for RGL
+/// materials, and `lobes`): with every simplifier of the adaptive family, the
 /// samplers the registry knows.
 pub fn plain_samplers(material: &Material) -> Vec<SamplerSpec> {
     SAMPLERS
@@ -934,7 +963,8 @@ mod tests {
                 "adaptive:rw",
                 "adaptive:optimal",
                 "adaptive:chi2",
-                "cosine"
+                "cosine",
+                "lobes"
             ]
         );
         assert_eq!(
@@ -1076,6 +1106,30 @@ mod tests {
         );
         // Without the adjustment the uniform plug-in would reject it.
         assert!(make_sampler("uniform", &aniso, &SamplerOptions::default()).is_ok());
+    }
+
+    /// A lobes sampler saves and loads through the registry with the same
+    /// draws, and its file is refused for another material.
+    #[test]
+    fn lobes_files_load_with_the_same_draws() {
+        let m = nickel();
+        let s = make_sampler("lobes", &m, &SamplerOptions::default()).unwrap();
+        assert_eq!(s.storage_bytes(), acdf_lobes::STORAGE_BYTES);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lobes.acdfs");
+        save_sampler(&s, &path).unwrap();
+        let loaded = load_sampler_for(&path, &m).unwrap();
+        assert!(matches!(loaded, AnySampler::Lobes(_)));
+        let wo = Vec3::new(0.3, -0.4, 0.8).normalize();
+        for k in 0..50 {
+            let u = Vec2::new((k as f32 + 0.5) / 50.0, (k as f32 * 0.618).fract());
+            assert_eq!(loaded.sample(wo, u), s.sample(wo, u));
+        }
+        let lambert = load_material(&MaterialSpec::Builtin("lambert".into()), None).unwrap();
+        assert!(matches!(
+            load_sampler_for(&path, &lambert),
+            Err(Error::SamplerMaterialMismatch { .. })
+        ));
     }
 
     /// `outgoing:SIMPLIFIER` builds the anisotropic outgoing sampler for an

@@ -24,6 +24,7 @@ use acdf::materials::rgl::{write_tensor_file, Dtype, RglBrdf, TensorFile};
 use acdf_adaptive::AdaptiveBrdfSampler;
 use acdf_adaptive_cdf::AdaptiveBuilder;
 use acdf_core::{Brdf, BxdfSampler, Vec2, Vec3};
+use acdf_lobes::{Lobes, LobesSampler};
 use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder};
 use acdf_tabulated::{Resolution, TabulatedBrdfSampler};
 use acdf_uniform::{PiecewiseConstantBuilder, UniformBrdfSampler};
@@ -306,6 +307,26 @@ fn anisotropic_outgoing_seed() -> &'static [u8] {
     })
 }
 
+/// A mixture of a cosine lobe and two GGX lobes, as the fit makes them.
+fn lobes_seed() -> &'static [u8] {
+    static SEED: OnceLock<Vec<u8>> = OnceLock::new();
+    cell(&SEED, || {
+        let lobes = Lobes::new(0.3, &[(0.5, 0.05), (0.2, 0.4)]).unwrap();
+        let material = acdf_tabulated::persist::StoredMaterial {
+            name: "nickel".into(),
+            isotropic: true,
+            fingerprint: 7,
+        };
+        LobesSampler::from_lobes(lobes, material).to_bytes()
+    })
+}
+
+fn read_lobes(bytes: &[u8]) {
+    if let Ok(s) = LobesSampler::from_bytes(bytes) {
+        check_sampler(&s);
+    }
+}
+
 /// A 32 x 16 map with a bright spot, as a Radiance file (run-length
 /// encoded scanlines, as the `image` crate writes them).
 fn hdr_seed() -> &'static [u8] {
@@ -430,6 +451,7 @@ fuzz_reader!(
     anisotropic_outgoing_seed,
     read_anisotropic_outgoing
 );
+fuzz_reader!(lobes_sampler_files, 300, lobes_seed, read_lobes);
 fuzz_reader!(hdr_images, 300, hdr_seed, read_hdr);
 
 /// The file forms, on inputs whose header lies about the size: each is
