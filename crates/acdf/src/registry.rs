@@ -28,6 +28,7 @@ use acdf_cosine::CosineSampler;
 use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_outgoing::FINE_PER_CELL;
 use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
+use acdf_product::{FilteredEnv, ProductOptions, ProductSampler};
 use acdf_rgl::RglSampler;
 use acdf_tabulated::persist::{self, PersistError};
 use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
@@ -110,6 +111,13 @@ pub trait SamplerOps {
 }
 
 impl SamplerOps for CosineSampler {}
+
+impl SamplerOps for ProductSampler {
+    /// The wrapped sampler's, behind `product:`.
+    fn resolution_label(&self) -> String {
+        format!("grid {0}x{0}", self.options().cells_per_side)
+    }
+}
 
 impl SamplerOps for RglSampler {
     fn resolution_label(&self) -> String {
@@ -265,6 +273,9 @@ any_sampler! {
     /// `outgoing:SIMPLIFIER` for an anisotropic material: θ_o × φ_o
     /// breakpoints, four blended slices.
     OutgoingAnisotropic(AnisotropicOutgoingSampler),
+    /// `product:BRDF_SAMPLER`: a BRDF sampler's density times an
+    /// environment map's luminance at one shading normal.
+    Product(ProductSampler),
 }
 
 impl std::fmt::Debug for AnySampler {
@@ -290,6 +301,11 @@ pub struct SamplerFamily {
     /// Whether `acdf render` compares it by default (in the table's order;
     /// with its first simplifier).
     pub in_render: bool,
+    /// Whether it samples BRDF × environment at one shading point: it is
+    /// built by [`make_product_sampler`] from a map and a normal (its
+    /// `build` refuses with [`Error::NeedsEnvironment`]) and named
+    /// `NAME[:BRDF_SAMPLER]`, the BRDF sampler it wraps.
+    pub environment: bool,
     /// Whether it can be used with a material (`None`: with every one), and
     /// why not.
     pub requires: Option<Requirement>,
@@ -332,6 +348,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: false,
         report_rank: Some(2),
         in_render: true,
+        environment: false,
         requires: None,
         file_kind: None,
         build: |_, _, _| Ok(CosineSampler.into()),
@@ -343,6 +360,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: false,
         report_rank: Some(0),
         in_render: true,
+        environment: false,
         requires: None,
         file_kind: Some("uniform"),
         build: |_, m, o| {
@@ -358,6 +376,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: true,
         report_rank: Some(1),
         in_render: true,
+        environment: false,
         requires: None,
         file_kind: Some("adaptive"),
         build: |spec, m, o| {
@@ -378,6 +397,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: true,
         report_rank: None,
         in_render: false,
+        environment: false,
         requires: None,
         file_kind: Some(acdf_outgoing::persist::KIND),
         build: |spec, m, o| {
@@ -414,6 +434,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: false,
         report_rank: Some(3),
         in_render: true,
+        environment: false,
         requires: Some(Requirement {
             met: |m| m.rgl.is_some(),
             reason: "the rgl sampler needs an RGL .bsdf material",
@@ -426,7 +447,92 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         },
         load: None,
     },
+    SamplerFamily {
+        name: PRODUCT,
+        description: "BRDF × environment at one shading normal: a BRDF sampler's density times \
+                      the map's luminance on an equal-area grid of 16x16 cells, with a defensive \
+                      share of the BRDF sampler; needs --envmap and --normal, \
+                      product:BRDF_SAMPLER (alone, product:outgoing:chi2)",
+        simplifiers: false,
+        report_rank: None,
+        in_render: false,
+        environment: true,
+        requires: None,
+        file_kind: None,
+        build: |spec, _, _| {
+            Err(Error::NeedsEnvironment {
+                sampler: spec.to_string(),
+                context: "which this command does not take".into(),
+            })
+        },
+        load: None,
+    },
 ];
+
+/// The name of the family that samples BRDF × environment
+/// ([`ProductSampler`]).
+pub const PRODUCT: &str = "product";
+
+/// The environment a product sampler is formed for: the map's filtered
+/// luminance (built once per map), the shading normal in the map's frame,
+/// and the product's options.
+#[derive(Debug, Clone)]
+pub struct ProductSetting {
+    /// The filtered map.
+    pub env: Arc<FilteredEnv>,
+    /// The shading normal, in the map's frame.
+    pub normal: Vec3,
+    /// Grid, points per cell, defensive share.
+    pub options: ProductOptions,
+}
+
+impl ProductSetting {
+    /// Filter `map` for the product with `options` at `normal`.
+    pub fn new(map: &acdf_lights::EnvMap, normal: Vec3, options: ProductOptions) -> Result<Self> {
+        options.validate()?;
+        Ok(ProductSetting {
+            env: Arc::new(FilteredEnv::new(map, options.env_width)?),
+            normal,
+            options,
+        })
+    }
+}
+
+/// Build the sampler `spec` names for `material`: for a family that samples
+/// BRDF × environment, its BRDF sampler built as [`make_sampler_spec`]
+/// builds it and wrapped with `setting` (a typed error without one); for
+/// any other family, [`make_sampler_spec`] (a typed error with one, which
+/// it would ignore).
+pub fn make_sampler_in(
+    spec: SamplerSpec,
+    material: &Material,
+    options: &SamplerOptions,
+    setting: Option<&ProductSetting>,
+) -> Result<AnySampler> {
+    match (spec.base(), setting) {
+        (Some(base), Some(setting)) => {
+            let brdf = make_sampler_spec(base, material, options)?;
+            brdf.build_all()?;
+            Ok(ProductSampler::new(
+                Arc::new(brdf),
+                &setting.env,
+                setting.normal,
+                setting.options,
+            )?
+            .into())
+        }
+        (Some(_), None) => Err(Error::NeedsEnvironment {
+            sampler: spec.to_string(),
+            context: "and was given neither".into(),
+        }),
+        (None, Some(_)) => Err(Error::InvalidArgument {
+            what: "--envmap and --normal",
+            value: spec.to_string(),
+            reason: format!("only the {PRODUCT} sampler takes an environment map and a normal"),
+        }),
+        (None, None) => make_sampler_spec(spec, material, options),
+    }
+}
 
 /// The family called `name`.
 pub fn family(name: &str) -> Option<&'static SamplerFamily> {
@@ -755,7 +861,7 @@ pub fn render_samplers(material: &Material) -> Vec<SamplerSpec> {
 pub fn plain_samplers(material: &Material) -> Vec<SamplerSpec> {
     SAMPLERS
         .iter()
-        .filter(|f| !f.simplifiers && usable(f, material))
+        .filter(|f| !f.simplifiers && !f.environment && usable(f, material))
         .map(SamplerSpec::of_family)
         .collect()
 }
@@ -888,7 +994,7 @@ mod tests {
         let options = SamplerOptions::default();
         for name in sampler_names()
             .into_iter()
-            .filter(|n| n != "rgl" && n != ADAPTIVE && n != OUTGOING)
+            .filter(|n| n != "rgl" && n != ADAPTIVE && n != OUTGOING && n != PRODUCT)
         {
             let s = make_sampler(&name, &m, &options).unwrap();
             assert_eq!(s.name(), name);
@@ -915,6 +1021,46 @@ mod tests {
                 unknown.to_string().contains(&name),
                 "{unknown} lacks {name}"
             );
+        }
+    }
+
+    /// `product` is built only with an environment, wraps the BRDF sampler
+    /// it names, draws with the density it reports, and stays out of the
+    /// default sets and the plain samplers; other samplers refuse an
+    /// environment.
+    #[test]
+    fn product_samplers_need_an_environment() {
+        let m = nickel();
+        let options = SamplerOptions {
+            resolution: "8x1x32x8".parse().unwrap(),
+            ..SamplerOptions::default()
+        };
+        let map = acdf_lights::EnvMap::from_fn(32, 16, |k, j| {
+            acdf_core::Rgb::splat(if (k, j) == (3, 4) { 500.0 } else { 0.2 })
+        })
+        .unwrap();
+        let setting =
+            ProductSetting::new(&map, Vec3::new(0.2, 0.3, 0.9), ProductOptions::default()).unwrap();
+        let spec: SamplerSpec = "product:adaptive:chi2".parse().unwrap();
+        assert!(matches!(
+            make_sampler_in(spec, &m, &options, None),
+            Err(Error::NeedsEnvironment { .. })
+        ));
+        assert!(matches!(
+            make_sampler("product", &m, &options),
+            Err(Error::NeedsEnvironment { .. })
+        ));
+        assert!(matches!(
+            make_sampler_in(SamplerSpec::COSINE, &m, &options, Some(&setting)),
+            Err(Error::InvalidArgument { .. })
+        ));
+        let s = make_sampler_in(spec, &m, &options, Some(&setting)).unwrap();
+        assert_eq!(s.name(), "product:adaptive:chi2");
+        let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
+        let d = s.sample(wo, Vec2::new(0.3, 0.6)).unwrap();
+        assert_eq!(s.pdf(wo, d.wi), d.pdf);
+        for f in [report_samplers(&m), render_samplers(&m), plain_samplers(&m)] {
+            assert!(f.iter().all(|s| s.family().name != PRODUCT));
         }
     }
 
