@@ -13,11 +13,15 @@
 //!   under the sky, the one-texel map and the black map (where the
 //!   product leaves the BRDF sampler alone).
 //! - gray-plastic and nickel under the four shared maps, at the zenith
-//!   and a generic normal (skipped without the shared data).
+//!   and a generic normal, θ_o ∈ {30, 89.5}° (skipped without the shared
+//!   data). The density has spikes there (a sun texel of a 1k map drawn
+//!   with its block's share), which make the battery's stratified Monte
+//!   Carlo ∫ pdf heavy-tailed; its bound ∫ pdf ≤ 1 then also asks the
+//!   quadrature (see `check_integral_of_pdf`).
 //! - `product:cosine` and `product:adaptive:chi2` once each: the family
 //!   wraps any BRDF sampler.
 //!
-//! θ_o ∈ {0, 30, 60, 85, 89.5}°, 200,000 draws per wo on 50 × 100 cells,
+//! θ_o ∈ {0, 30, 60, 85, 89.5}° unless said, 200,000 draws per wo on 50 × 100 cells,
 //! α = 0.01 (Sidak over each test's chi-square tests). The mutant whose
 //! pdf is the product's without the environment factor (the BRDF
 //! sampler's alone) while its draws follow the product is rejected by the
@@ -30,7 +34,7 @@ use acdf_conformance::{
 use acdf_core::{Brdf, BxdfSample, BxdfSampler, Vec2, Vec3};
 use acdf_lights::EnvMap;
 use acdf_outgoing::{OutgoingBuilder, OutgoingSampler, FINE_PER_CELL};
-use acdf_product::{FilteredEnv, ProductOptions, ProductSampler};
+use acdf_product::{ProductEnv, ProductOptions, ProductSampler};
 use acdf_tabulated::Resolution;
 use std::sync::Arc;
 
@@ -46,8 +50,12 @@ fn product(
     normal: Vec3,
 ) -> acdf_core::Result<ProductSampler> {
     let options = ProductOptions::default();
-    let env = FilteredEnv::new(map, options.env_width)?;
-    ProductSampler::new(base, &env, normal, options)
+    let env = ProductEnv::new(
+        Arc::new(map.clone()),
+        options.block_columns,
+        options.points_per_side,
+    )?;
+    ProductSampler::new(base, Arc::new(env), normal, options)
 }
 
 fn config() -> SamplerConfig {
@@ -164,7 +172,11 @@ fn product_under_the_shared_maps() {
             for n in [Vec3::Z, Vec3::new(0.5, 0.4, 0.3).normalize()] {
                 let s = product(base.clone(), &map, n).expect("the product builds");
                 let subject = format!("product {material} {stem} {n}");
-                report = merge(report, check_sampler(&subject, &s, Some(&*brdf), &config()));
+                let config = SamplerConfig {
+                    wo_theta_degrees: vec![30.0, 89.5],
+                    ..config()
+                };
+                report = merge(report, check_sampler(&subject, &s, Some(&*brdf), &config));
             }
         }
     }

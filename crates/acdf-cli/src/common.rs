@@ -79,10 +79,11 @@ pub struct ProductArgs {
     /// positive wherever the BRDF sampler's is.
     #[arg(long, value_name = "D", default_value_t = acdf::product::ProductOptions::default().defensive)]
     pub product_defensive: f32,
-    /// The product sampler's grid: N × N cells of equal solid angle over
-    /// the hemisphere.
-    #[arg(long, value_name = "N", default_value_t = acdf::product::ProductOptions::default().cells_per_side)]
-    pub product_cells: usize,
+    /// The product sampler's blocks: the map is cut into N × N/2 blocks of
+    /// texels (at most its own size), each weighed per query by the BRDF
+    /// sampler's density at 2 × 2 points.
+    #[arg(long, value_name = "N", default_value_t = acdf::product::ProductOptions::default().block_columns)]
+    pub product_blocks: usize,
 }
 
 impl ProductArgs {
@@ -104,12 +105,12 @@ impl ProductArgs {
         let normal = parse_sphere_direction_degrees(normal)?;
         let options = acdf::product::ProductOptions {
             defensive: self.product_defensive,
-            cells_per_side: self.product_cells,
+            block_columns: self.product_blocks,
             ..Default::default()
         };
         options.validate()?;
         let map = acdf::env_registry::load_env_map(path)?;
-        Ok(Some(ProductSetting::new(&map, normal, options)?))
+        Ok(Some(ProductSetting::new(map, normal, options)?))
     }
 }
 

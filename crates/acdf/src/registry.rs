@@ -28,7 +28,7 @@ use acdf_cosine::CosineSampler;
 use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_outgoing::FINE_PER_CELL;
 use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
-use acdf_product::{FilteredEnv, ProductOptions, ProductSampler};
+use acdf_product::{ProductEnv, ProductOptions, ProductSampler};
 use acdf_rgl::RglSampler;
 use acdf_tabulated::persist::{self, PersistError};
 use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
@@ -113,9 +113,10 @@ pub trait SamplerOps {
 impl SamplerOps for CosineSampler {}
 
 impl SamplerOps for ProductSampler {
-    /// The wrapped sampler's, behind `product:`.
+    /// The map's blocks.
     fn resolution_label(&self) -> String {
-        format!("grid {0}x{0}", self.options().cells_per_side)
+        let (c, r) = self.env().blocks();
+        format!("{c}x{r} blocks")
     }
 }
 
@@ -449,10 +450,10 @@ pub static SAMPLERS: &[SamplerFamily] = &[
     },
     SamplerFamily {
         name: PRODUCT,
-        description: "BRDF × environment at one shading normal: a BRDF sampler's density times \
-                      the map's luminance on an equal-area grid of 16x16 cells, with a defensive \
-                      share of the BRDF sampler; needs --envmap and --normal, \
-                      product:BRDF_SAMPLER (alone, product:outgoing:chi2)",
+        description: "BRDF × environment at one shading normal: blocks of the map weighed by \
+                      a BRDF sampler's density, texels by their light, with a defensive share \
+                      of the BRDF sampler; needs --envmap and --normal, product:BRDF_SAMPLER \
+                      (alone, product:outgoing:chi2)",
         simplifiers: false,
         report_rank: None,
         in_render: false,
@@ -473,13 +474,13 @@ pub static SAMPLERS: &[SamplerFamily] = &[
 /// ([`ProductSampler`]).
 pub const PRODUCT: &str = "product";
 
-/// The environment a product sampler is formed for: the map's filtered
-/// luminance (built once per map), the shading normal in the map's frame,
-/// and the product's options.
+/// The environment a product sampler is formed for: the map's blocks
+/// (built once per map), the shading normal in the map's frame, and the
+/// product's options.
 #[derive(Debug, Clone)]
 pub struct ProductSetting {
-    /// The filtered map.
-    pub env: Arc<FilteredEnv>,
+    /// The map cut into blocks.
+    pub env: Arc<ProductEnv>,
     /// The shading normal, in the map's frame.
     pub normal: Vec3,
     /// Grid, points per cell, defensive share.
@@ -487,11 +488,19 @@ pub struct ProductSetting {
 }
 
 impl ProductSetting {
-    /// Filter `map` for the product with `options` at `normal`.
-    pub fn new(map: &acdf_lights::EnvMap, normal: Vec3, options: ProductOptions) -> Result<Self> {
+    /// Cut `map` into the blocks of `options`, for the product at `normal`.
+    pub fn new(
+        map: Arc<acdf_lights::EnvMap>,
+        normal: Vec3,
+        options: ProductOptions,
+    ) -> Result<Self> {
         options.validate()?;
         Ok(ProductSetting {
-            env: Arc::new(FilteredEnv::new(map, options.env_width)?),
+            env: Arc::new(ProductEnv::new(
+                map,
+                options.block_columns,
+                options.points_per_side,
+            )?),
             normal,
             options,
         })
@@ -515,7 +524,7 @@ pub fn make_sampler_in(
             brdf.build_all()?;
             Ok(ProductSampler::new(
                 Arc::new(brdf),
-                &setting.env,
+                setting.env.clone(),
                 setting.normal,
                 setting.options,
             )?
@@ -1039,8 +1048,12 @@ mod tests {
             acdf_core::Rgb::splat(if (k, j) == (3, 4) { 500.0 } else { 0.2 })
         })
         .unwrap();
-        let setting =
-            ProductSetting::new(&map, Vec3::new(0.2, 0.3, 0.9), ProductOptions::default()).unwrap();
+        let setting = ProductSetting::new(
+            Arc::new(map),
+            Vec3::new(0.2, 0.3, 0.9),
+            ProductOptions::default(),
+        )
+        .unwrap();
         let spec: SamplerSpec = "product:adaptive:chi2".parse().unwrap();
         assert!(matches!(
             make_sampler_in(spec, &m, &options, None),

@@ -1,21 +1,22 @@
 //! `acdf-product` samples the product of the two factors of direct
 //! lighting from an environment map at one shading point: it draws the
-//! incident direction wi in proportion (up to the resolution of a coarse
-//! grid) to f_r(wo, wi) cos θ_i · L(wi), instead of to one factor alone as
-//! a BRDF sampler or an environment sampler does. The BRDF factor is any
-//! BRDF sampler's density (which follows f_r cos θ_i), taken through
+//! incident direction wi in proportion to f_r(wo, wi) cos θ_i · L(wi),
+//! resolved to blocks of the map in the BRDF factor and to the map's
+//! texels in the light, instead of to one factor alone as a BRDF sampler
+//! or an environment sampler does. The BRDF factor is any BRDF sampler's
+//! density (which follows f_r cos θ_i), taken through
 //! `acdf_core::BxdfSampler`, so the family wraps whichever sampler the
-//! caller builds; the environment factor is the map's luminance, averaged
-//! once per map into a small table ([`FilteredEnv`]). Per query (normal,
-//! wo) the product is evaluated at a few points of each cell of an
-//! equal-area grid of the local hemisphere ([`HemisphereGrid`]), a cell is
-//! drawn from the weights' CDF and wi uniformly inside it; a defensive
-//! share δ of draws comes from the BRDF sampler itself, so the density,
-//! (1 − δ) × (the cell's share / its solid angle) + δ × p_S(wo, wi), is
-//! exact and positive wherever the BRDF sampler's is ([`ProductQuery`]).
-//! [`ProductSampler`] fixes the shading normal and is a `BxdfSampler`, so
-//! the conformance battery and `acdf sample`/`acdf pdf` use it as any
-//! other.
+//! caller builds. The map is cut once into blocks of texels, each with its
+//! light and the CDFs that draw a texel inside it ([`ProductEnv`]). Per
+//! query (normal, wo), the BRDF sampler's density at a few points of each
+//! block above the horizon weighs the block's light; a block is drawn from
+//! these weights, a texel of it by its light, and wi uniformly in the
+//! texel. A defensive share δ of draws comes from the BRDF sampler itself,
+//! so the density, (1 − δ) × (block's share) × Y_t / M_b + δ × p_S(wo, wi),
+//! is exact and positive wherever the BRDF sampler's is
+//! ([`ProductQuery`]). [`ProductSampler`] fixes the shading normal and is a
+//! `BxdfSampler`, so the conformance battery and `acdf sample`/`acdf pdf`
+//! use it as any other.
 //!
 //! Frames: the normal is given in the map's frame (`acdf_lights::latlong`),
 //! wo and wi are in the local shading frame of
@@ -27,12 +28,10 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 mod env;
-mod grid;
 mod query;
 
-pub use env::FilteredEnv;
-pub use grid::{hemisphere_to_square, square_to_hemisphere, HemisphereGrid};
-pub use query::{environment_at_points, ProductQuery};
+pub use env::{LocalPoints, ProductEnv};
+pub use query::ProductQuery;
 
 use acdf_core::{is_valid_outgoing, BxdfSample, BxdfSampler, Error, Frame, Result, Vec2, Vec3};
 use std::sync::{Arc, Mutex};
@@ -40,26 +39,23 @@ use std::sync::{Arc, Mutex};
 /// The knobs of the product sampler.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProductOptions {
-    /// Grid cells per side: N² cells of solid angle 2π / N².
-    pub cells_per_side: usize,
-    /// Evaluation points per cell side: s² points per cell.
+    /// Block columns of the map (block rows: half as many), at most the
+    /// map's texels.
+    pub block_columns: usize,
+    /// Evaluation points of the BRDF factor per block side: s² per block.
     pub points_per_side: usize,
     /// δ: the share of draws from the BRDF sampler, in [0, 1]; above 0
     /// the density covers every direction the BRDF sampler's does.
     pub defensive: f32,
-    /// Columns of the filtered environment table (rows: half as many).
-    pub env_width: usize,
 }
 
 impl Default for ProductOptions {
-    /// 16 × 16 cells, 2 × 2 points per cell, δ = 0.15, a 64 × 32
-    /// environment table.
+    /// 64 × 32 blocks, 2 × 2 points per block, δ = 0.15.
     fn default() -> Self {
         ProductOptions {
-            cells_per_side: 16,
+            block_columns: 64,
             points_per_side: 2,
             defensive: 0.15,
-            env_width: 64,
         }
     }
 }
@@ -68,9 +64,8 @@ impl ProductOptions {
     /// A typed error for a count of 0 or above 1024, or δ outside [0, 1].
     pub fn validate(&self) -> Result<()> {
         for (name, v) in [
-            ("cells per side", self.cells_per_side),
+            ("block columns", self.block_columns),
             ("points per side", self.points_per_side),
-            ("environment width", self.env_width),
         ] {
             if !(1..=1024).contains(&v) {
                 return Err(Error::InvalidParameter {
@@ -100,9 +95,10 @@ const RECENT_QUERIES: usize = 8;
 pub struct ProductSampler {
     name: String,
     brdf: Arc<dyn BxdfSampler>,
-    grid: HemisphereGrid,
-    /// The filtered luminance at the grid's points, for this normal.
-    env: Vec<f32>,
+    env: Arc<ProductEnv>,
+    /// The blocks' evaluation points above this normal's horizon.
+    points: LocalPoints,
+    frame: Frame,
     normal: Vec3,
     options: ProductOptions,
     recent: Mutex<Vec<Arc<ProductQuery>>>,
@@ -119,13 +115,13 @@ impl std::fmt::Debug for ProductSampler {
 }
 
 impl ProductSampler {
-    /// The product of `brdf`'s density and the filtered map `env` at the
-    /// shading normal `normal` (the map's frame; normalised). A typed
-    /// error for a normal that is not finite or has no length, or bad
-    /// options.
+    /// The product of `brdf`'s density and the map of `env` at the shading
+    /// normal `normal` (the map's frame; normalised), with the defensive
+    /// share of `options` (its block counts are `env`'s). A typed error
+    /// for a normal that is not finite or has no length, or bad options.
     pub fn new(
         brdf: Arc<dyn BxdfSampler>,
-        env: &FilteredEnv,
+        env: Arc<ProductEnv>,
         normal: Vec3,
         options: ProductOptions,
     ) -> Result<ProductSampler> {
@@ -134,13 +130,14 @@ impl ProductSampler {
             name: "normal",
             reason: format!("{normal} is not a finite direction with a length"),
         })?;
-        let grid = HemisphereGrid::new(options.cells_per_side, options.points_per_side);
-        let env = environment_at_points(&grid, env, &Frame::from_z(normal));
+        let frame = Frame::from_z(normal);
+        let points = env.local_points(&frame);
         Ok(ProductSampler {
             name: format!("product:{}", brdf.name()),
             brdf,
-            grid,
             env,
+            points,
+            frame,
             normal,
             options,
             recent: Mutex::new(Vec::new()),
@@ -155,6 +152,11 @@ impl ProductSampler {
     /// The options it was built with.
     pub fn options(&self) -> ProductOptions {
         self.options
+    }
+
+    /// The map's blocks.
+    pub fn env(&self) -> &Arc<ProductEnv> {
+        &self.env
     }
 
     /// The BRDF sampler it wraps.
@@ -178,8 +180,9 @@ impl ProductSampler {
             }
         }
         let q = Arc::new(ProductQuery::build(
-            &self.grid,
             &self.env,
+            self.frame,
+            &self.points,
             self.brdf.as_ref(),
             wo,
             self.options.defensive,
@@ -199,16 +202,16 @@ impl BxdfSampler for ProductSampler {
     }
 
     fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
-        self.query(wo)?.sample(&self.grid, self.brdf.as_ref(), u)
+        self.query(wo)?.sample(&self.env, self.brdf.as_ref(), u)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         self.query(wo)
-            .map_or(0.0, |q| q.pdf(&self.grid, self.brdf.as_ref(), wi))
+            .map_or(0.0, |q| q.pdf(&self.env, self.brdf.as_ref(), wi))
     }
 
-    /// The wrapped sampler's tables, the grid's points, the environment
-    /// at them, and the queries kept.
+    /// The wrapped sampler's tables, the map's blocks, the points of this
+    /// normal, and the queries kept.
     fn storage_bytes(&self) -> usize {
         let kept: usize = self
             .recent
@@ -217,10 +220,7 @@ impl BxdfSampler for ProductSampler {
             .iter()
             .map(|q| q.storage_bytes())
             .sum();
-        self.brdf.storage_bytes()
-            + self.grid.points().len() * std::mem::size_of::<Vec3>()
-            + self.env.len() * std::mem::size_of::<f32>()
-            + kept
+        self.brdf.storage_bytes() + self.env.storage_bytes() + self.points.storage_bytes() + kept
     }
 
     fn sample_batch(&self, wo: Vec3, u: &[Vec2], out: &mut [Option<BxdfSample>]) {
@@ -228,7 +228,7 @@ impl BxdfSampler for ProductSampler {
         for (o, &u) in out.iter_mut().zip(u) {
             *o = q
                 .as_ref()
-                .and_then(|q| q.sample(&self.grid, self.brdf.as_ref(), u));
+                .and_then(|q| q.sample(&self.env, self.brdf.as_ref(), u));
         }
     }
 
@@ -237,7 +237,7 @@ impl BxdfSampler for ProductSampler {
         for (o, &wi) in out.iter_mut().zip(wi) {
             *o = q
                 .as_ref()
-                .map_or(0.0, |q| q.pdf(&self.grid, self.brdf.as_ref(), wi));
+                .map_or(0.0, |q| q.pdf(&self.env, self.brdf.as_ref(), wi));
         }
     }
 }
