@@ -133,7 +133,7 @@ fn main() {
                 for theta_o in [30.0, 75.0] {
                     let wo = direction(theta_o, 40.0);
                     let integrand = Integrand::new(brdf.as_ref(), wo, grid, Some(&radiance));
-                    if !(integrand.integral() > 0.0) {
+                    if integrand.integral().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                         continue;
                     }
                     let rv = |s: &dyn BxdfSampler| integrand.moments(s).relative_variance();

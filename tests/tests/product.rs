@@ -202,10 +202,7 @@ fn product_wraps_any_brdf_sampler() {
     ] {
         let s = product(base, &sky, normal).expect("the product builds");
         assert_eq!(s.name(), format!("product:{label}"));
-        report = merge(
-            report,
-            check_sampler(&s.name().to_string(), &s, Some(&*brdf), &config()),
-        );
+        report = merge(report, check_sampler(s.name(), &s, Some(&*brdf), &config()));
     }
     report.print();
     assert!(report.passed(), "{report}");

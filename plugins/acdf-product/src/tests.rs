@@ -1,8 +1,33 @@
 use super::*;
+use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use acdf_core::Rgb;
-use acdf_cosine::CosineSampler;
 use acdf_lights::EnvMap;
 use rand::{Rng, SeedableRng};
+
+/// p = cos θ_i / π, the simplest BRDF sampler (plug-ins do not depend on
+/// each other, so not `acdf-cosine`'s).
+struct CosineSampler;
+
+impl BxdfSampler for CosineSampler {
+    fn name(&self) -> &str {
+        "cosine"
+    }
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        let wi = square_to_cosine_hemisphere(u);
+        let pdf = cosine_hemisphere_pdf(wi);
+        (is_valid_outgoing(wo) && pdf > 0.0).then_some(BxdfSample { wi, pdf })
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if is_valid_outgoing(wo) {
+            cosine_hemisphere_pdf(wi)
+        } else {
+            0.0
+        }
+    }
+    fn storage_bytes(&self) -> usize {
+        0
+    }
+}
 
 fn sun_map() -> EnvMap {
     EnvMap::from_fn(64, 32, |k, j| {
