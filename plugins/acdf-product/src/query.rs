@@ -142,9 +142,10 @@ impl ProductQuery {
     }
 
     /// The density p(wi) of [`sample`](Self::sample) (see the type's
-    /// documentation); 0 at or below the horizon.
+    /// documentation); 0 at or below the horizon and for a wi that is not
+    /// finite.
     pub fn pdf(&self, env: &ProductEnv, brdf: &dyn BxdfSampler, wi: Vec3) -> f32 {
-        if !is_valid_outgoing(self.wo) || !(wi.z > 0.0) {
+        if !is_valid_outgoing(self.wo) || !(wi.z > 0.0) || !wi.is_finite() {
             return 0.0;
         }
         let brdf_part = if self.grid_share < 1.0 {
