@@ -678,7 +678,7 @@ fn searches_and_trigonometry() {
             let mut counts = Vec::new();
             for &v in &probes {
                 counts.push(search::count_sorted(&list, v));
-                counts.push(search::count_short_or_search(&data, 3, len, v));
+                counts.push(search::count_one(&data, 3, len, v));
                 counts.extend(search::count_at_or_below(&data, 3, len, [v, 0.5, -v, 0.25]));
                 if len <= search::WINDOW {
                     counts.push(search::count_window(&data, 3, len, v));

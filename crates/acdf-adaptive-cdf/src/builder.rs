@@ -1,13 +1,10 @@
 //! [`AdaptiveBuilder`]: the simplifier and tolerance that turn a table of
-//! values into an [`AdaptiveCdf2D`], for BRDF slices (`acdf-tabulated`'s
-//! [`SliceBuilder`]) and environment tables (`acdf-lights`'s
-//! [`TableBuilder`]) alike.
+//! values into an [`AdaptiveCdf2D`], for BRDF slices and environment tables
+//! alike (one [`TableBuilder`]).
 
 use crate::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
 use crate::AdaptiveCdf2D;
-use acdf_core::Result;
-use acdf_lights::TableBuilder;
-use acdf_tabulated::SliceBuilder;
+use acdf_core::{Result, TableBuilder};
 use std::sync::Arc;
 
 /// Builds an [`AdaptiveCdf2D`] per tabulated slice: the marginal over θ_h
@@ -40,7 +37,13 @@ impl AdaptiveBuilder {
     }
 }
 
-impl SliceBuilder for AdaptiveBuilder {
+/// The table simplified as a whole by the builder's simplifier and
+/// tolerance ([`AdaptiveCdf2D::from_values`]); a BRDF slice keeps its first
+/// θ_h row as a marginal segment of its own
+/// ([`AdaptiveCdf2D::from_values_pinned`]), an environment table pins no
+/// row: a lat-long table has no Jacobian that vanishes at an edge (each
+/// texel is sampled uniformly in solid angle).
+impl TableBuilder for AdaptiveBuilder {
     type Dist = AdaptiveCdf2D;
 
     /// `adaptive:<simplifier>`, e.g. `adaptive:optimal`.
@@ -48,9 +51,16 @@ impl SliceBuilder for AdaptiveBuilder {
         format!("adaptive:{}", self.simplifier.name())
     }
 
-    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<AdaptiveCdf2D> {
-        // The first θ_h row stays on its own: see
-        // `AdaptiveCdf2D::from_values_pinned`.
+    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<AdaptiveCdf2D> {
+        AdaptiveCdf2D::from_values(values, nx, ny, &*self.simplifier, self.tolerance)
+    }
+
+    fn build_slice(
+        &self,
+        values: &[f32],
+        n_phi_h: usize,
+        n_theta_h: usize,
+    ) -> Result<AdaptiveCdf2D> {
         AdaptiveCdf2D::from_values_pinned(
             values,
             n_phi_h,
@@ -59,22 +69,5 @@ impl SliceBuilder for AdaptiveBuilder {
             self.tolerance,
             1,
         )
-    }
-}
-
-/// The table simplified as a whole by the builder's simplifier and
-/// tolerance ([`AdaptiveCdf2D::from_values`]). Unlike the BRDF slices, no
-/// row is pinned: a lat-long table has no Jacobian that vanishes at an
-/// edge (each texel is sampled uniformly in solid angle).
-impl TableBuilder for AdaptiveBuilder {
-    type Dist = AdaptiveCdf2D;
-
-    /// `adaptive:NAME`.
-    fn name(&self) -> String {
-        format!("adaptive:{}", self.simplifier.name())
-    }
-
-    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<AdaptiveCdf2D> {
-        AdaptiveCdf2D::from_values(values, nx, ny, &*self.simplifier, self.tolerance)
     }
 }

@@ -15,7 +15,7 @@
 //! function `density_of`, so the pdf returned with a sample is bit-for-bit
 //! the pdf evaluated at that sample.
 
-use acdf_core::search::{count_at_or_below, count_short_or_search, Guide};
+use acdf_core::search::{count_at_or_below, count_one, Guide};
 use acdf_core::{clamp_unit, Sample1D, ONE_MINUS_EPSILON};
 
 /// The largest f32 strictly below `v` (for v > 0 finite).
@@ -175,7 +175,7 @@ impl<'a> Curve<'a> {
     /// in [0, m - 2].
     #[inline(always)]
     pub fn segment_of(&self, x: f32) -> usize {
-        count_short_or_search(self.data, self.start + 1, self.len - 2, x)
+        count_one(self.data, self.start + 1, self.len - 2, x)
     }
 
     /// The segment i with c_i <= u < c_{i+1} for u in [0, 1) (a zero-mass
@@ -190,7 +190,7 @@ impl<'a> Curve<'a> {
                 g.cdfs
                     .count(self.data, start, u, Guide::cell(u, CURVE_GUIDE_CELLS))
             }
-            _ => count_short_or_search(self.data, start, self.len - 2, u),
+            _ => count_one(self.data, start, self.len - 2, u),
         }
     }
 

@@ -16,10 +16,7 @@
 //! which distribution is sampled (slightly), never the exactness of its
 //! density.
 
-use acdf_core::search::{
-    count_at_or_below, count_window, short_window_at_or_below_u32, window_at_or_below_u32, Guide,
-    WINDOW,
-};
+use acdf_core::search::{count_one, short_window_at_or_below_u32, Guide, WINDOW};
 use acdf_core::{clamp_unit, Distribution2D, Error, Result, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use acdf_lights::TableBuilder;
 
@@ -42,9 +39,6 @@ const Q16: u32 = u16::MAX as u32;
 /// The marginal's CDF unit, 2^-24: multiples of it below 1 are exact in
 /// `f32`, and so are their differences.
 const Q24: u32 = 1 << 24;
-/// The number of conditional vertices compared at once
-/// ([`count_vertices_at_or_below`]).
-pub const WINDOW_PAIRS: usize = 32;
 /// A packed conditional vertex: column index in the low 16 bits, quantised
 /// CDF value in the high 16.
 type Pair = u32;
@@ -254,7 +248,7 @@ impl PackedEnvCdf2D {
                 .map_err(|_| too_large("more than 2^32 conditional vertices".into()))?;
             firsts.push(end);
         }
-        conditionals.extend([Pair::MAX; WINDOW_PAIRS]);
+        conditionals.extend([Pair::MAX; WINDOW]);
         let marginal: Vec<MarginalVertex> = marginal_rows
             .iter()
             .zip(&firsts)
@@ -300,7 +294,7 @@ impl PackedEnvCdf2D {
 
     /// The number of conditional vertices stored, over all conditionals.
     pub fn conditional_vertex_total(&self) -> usize {
-        self.conditionals.len() - WINDOW_PAIRS
+        self.conditionals.len() - WINDOW
     }
 
     /// Marginal segment j, from vertex j to j + 1.
@@ -330,10 +324,8 @@ impl PackedEnvCdf2D {
             let c =
                 ((g as u32) << MARGINAL_CELL_SHIFT | (entry & 0xffff)) as f32 * (1.0 / Q24 as f32);
             a + ((b > a) & (c <= uy)) as usize
-        } else if b - a <= WINDOW {
-            a + count_window(&self.marginal_cdf, 1 + a, b - a, uy)
         } else {
-            a + count_at_or_below(&self.marginal_cdf, 1 + a, b - a, [uy])[0]
+            a + count_one(&self.marginal_cdf, 1 + a, b - a, uy)
         }
     }
 
@@ -387,7 +379,7 @@ impl Distribution2D for PackedEnvCdf2D {
             + if n <= SHORT_WINDOW {
                 count_short_window(&self.conditionals, start, n, key)
             } else {
-                count_vertices_at_or_below(&self.conditionals, start, n, key)
+                count_one(&self.conditionals, start, n, key)
             };
         let (e0, e1) = (self.conditionals[i], self.conditionals[i + 1]);
         let (c0, c1) = ((e0 >> 16) as f32, (e1 >> 16) as f32);
@@ -555,57 +547,11 @@ fn mask_at_or_below(entries: &[u32], key: u32) -> u32 {
         .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
 }
 
-/// The number of the packed vertices `data[start..start + len]` (CDF
-/// values non-decreasing) whose pair is `<= key` as an unsigned integer:
-/// with key = (k << 16) | 0xffff, those whose CDF value is at most k,
-/// whatever their columns.
-///
-/// A four-way search cuts the list down to at most [`WINDOW_PAIRS`]
-/// candidates (three probes, the number at or below the key added as
-/// integers: no branch that follows the key), then one window of
-/// [`WINDOW_PAIRS`] entries is compared at once ([`window_mask`]) and the
-/// answer is the run of ones from its first bit, cut at the candidates'
-/// number. The window may reach past the list (into the next conditional or
-/// the padding), never past `data` when `data` ends with [`WINDOW_PAIRS`]
-/// entries after the list, as the packed conditionals do; for a shorter
-/// `data` it ends at the end of `data`.
-#[inline(always)]
-pub fn count_vertices_at_or_below(data: &[u32], start: usize, len: usize, key: u32) -> usize {
-    let mut lo = start;
-    let mut n = len;
-    while n > WINDOW_PAIRS {
-        let q = n / 4;
-        let probe = |k: usize| (data[lo + k * q - 1] <= key) as usize;
-        lo += q * (probe(1) + probe(2) + probe(3));
-        n -= 3 * q;
-    }
-    if data.len() < WINDOW_PAIRS {
-        return lo - start + data[lo..lo + n].iter().filter(|&&e| e <= key).count();
-    }
-    let first = lo.min(data.len() - WINDOW_PAIRS);
-    let window: &[u32; WINDOW_PAIRS] = data[first..first + WINDOW_PAIRS]
-        .try_into()
-        .expect("a window of WINDOW_PAIRS entries");
-    let mask = u64::from(window_mask(window, key)) >> (lo - first);
-    lo - start + (mask.trailing_ones() as usize).min(n)
-}
-
-/// Bit k set where `window[k] <= key` (unsigned), the 32 entries compared
-/// at once ([`window_at_or_below_u32`]).
-#[inline(always)]
-pub fn window_mask(window: &[u32; WINDOW_PAIRS], key: u32) -> u32 {
-    window_at_or_below_u32(window, key)
-}
-
-/// [`window_mask`] one entry at a time.
-pub fn window_mask_portable(window: &[u32; WINDOW_PAIRS], key: u32) -> u32 {
-    mask_at_or_below(window, key)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::DouglasPeucker;
+    use acdf_core::search::Key;
     use rand::{Rng, SeedableRng};
 
     /// Both window compares (32 and 8 entries) give the portable form's
@@ -615,7 +561,7 @@ mod tests {
     fn window_masks_agree_with_the_portable_compare() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
         for _ in 0..2000 {
-            let w: [u32; WINDOW_PAIRS] = std::array::from_fn(|_| rng.random());
+            let w: [u32; WINDOW] = std::array::from_fn(|_| rng.random());
             let short: &[u32; SHORT_WINDOW] = w[..SHORT_WINDOW].try_into().unwrap();
             for key in [
                 0,
@@ -628,7 +574,7 @@ mod tests {
                 w[3],
                 w[20],
             ] {
-                assert_eq!(window_mask(&w, key), window_mask_portable(&w, key));
+                assert_eq!(u32::window_mask(&w, key), mask_at_or_below(&w, key));
                 assert_eq!(
                     short_window_at_or_below_u32(short, key),
                     mask_at_or_below(short, key)
@@ -668,18 +614,14 @@ mod tests {
                 .iter()
                 .map(|&c| c << 16 | rng.random_range(0..1024))
                 .collect();
-            for pad in [0, WINDOW_PAIRS] {
+            for pad in [0, WINDOW] {
                 let mut data = vec![7u32; 3];
                 data.extend(&list);
                 data.extend(vec![0u32; pad]);
                 for k in 0..2010u32 {
                     let expected = cdf.partition_point(|&c| c <= k);
                     let key = k << 16 | 0xffff;
-                    assert_eq!(
-                        count_vertices_at_or_below(&data, 3, len, key),
-                        expected,
-                        "{len} {k}"
-                    );
+                    assert_eq!(count_one(&data, 3, len, key), expected, "{len} {k}");
                 }
             }
         }
@@ -722,7 +664,7 @@ mod tests {
                     .enumerate()
                     .map(|(i, &c)| (c << 16) | (i as u32 % 1024)),
             );
-            data.extend([Pair::MAX; WINDOW_PAIRS]);
+            data.extend([Pair::MAX; WINDOW]);
             for k in (0..Q16)
                 .step_by(7)
                 .chain([0, 4095, 4096, 8191, 8192, 65534])
@@ -734,7 +676,7 @@ mod tests {
                     + if n <= SHORT_WINDOW {
                         count_short_window(&data, start, n, key)
                     } else {
-                        count_vertices_at_or_below(&data, start, n, key)
+                        count_one(&data, start, n, key)
                     };
                 assert_eq!(
                     got,

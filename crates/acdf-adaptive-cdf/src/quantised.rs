@@ -11,7 +11,7 @@ mod packed;
 mod shared;
 
 pub use packed::{
-    check_curve, check_offsets, conditional_masses, count_at_or_below, grid_indices, quantise,
-    Curve, PackedCdf2D, Segment, Stored, LANES, Q, QF,
+    check_curve, check_offsets, conditional_masses, grid_indices, quantise, PackedCdf2D,
+    QuantisedCurve, QuantisedSegment, Stored, Q, QF,
 };
 pub use shared::{GridCell, GridDraw, SharedSlices};

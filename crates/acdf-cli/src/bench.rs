@@ -44,7 +44,7 @@ use std::time::Instant;
 use acdf_adaptive_cdf::{AdaptiveBuilder, AdaptiveCdf2D};
 use acdf_core::geometry::spherical_direction;
 use acdf_core::simd::clock::clock_ghz;
-use acdf_core::{Brdf, BxdfSampler, Distribution2D, Sample2D, Vec2, Vec3};
+use acdf_core::{Brdf, BxdfSampler, Distribution2D, Sample2D, TableBuilder, Vec2, Vec3};
 use acdf_materials::merl::MerlTable;
 use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
 use acdf_uniform::{PiecewiseConstant2D, PiecewiseConstantBuilder, UniformBrdfSampler};
@@ -435,7 +435,7 @@ pub fn run_bench(config: &BenchConfig) -> Result<BenchReport> {
     let (nx, ny) = (res.phi_h, res.theta_h);
     let uniform_2d = PiecewiseConstant2D::new(&values, nx, ny)?;
     let adaptive_builder = AdaptiveBuilder::by_name("dp", None)?;
-    let adaptive_2d: AdaptiveCdf2D = adaptive_builder.build(&values, nx, ny)?;
+    let adaptive_2d: AdaptiveCdf2D = adaptive_builder.build_slice(&values, nx, ny)?;
     let distributions = vec![
         bench_distribution("piecewise_constant_2d", &uniform_2d, (nx, ny), &u, repeats),
         bench_distribution("adaptive_2d", &adaptive_2d, (nx, ny), &u, repeats),

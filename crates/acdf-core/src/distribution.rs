@@ -116,6 +116,34 @@ pub trait Distribution1D: Send + Sync {
     }
 }
 
+/// Builds a [`Distribution2D`] from a table of non-negative values: what a
+/// sampler family supplies, for the slices of a tabulated BRDF and for the
+/// tables of an environment map alike.
+///
+/// The distribution keeps its density constant over every table cell
+/// (cells may be merged, never split): the samplers look a cell's density
+/// up at its centre.
+pub trait TableBuilder: Send + Sync {
+    /// The distribution built.
+    type Dist: Distribution2D;
+
+    /// The family's name, e.g. `uniform` or `adaptive:chi2`.
+    fn name(&self) -> String;
+
+    /// Build from `values`: row-major, `ny` rows (y) of `nx` columns (x),
+    /// every value finite and non-negative.
+    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<Self::Dist>;
+
+    /// Build the table of one BRDF slice: `n_theta_h` rows (θ_h) of
+    /// `n_phi_h` columns (φ_h), spaced as `acdf_tabulated::tabulate`
+    /// documents. [`build`](Self::build), unless the family treats a
+    /// slice's first θ_h row, where the half-vector map's Jacobian
+    /// vanishes, apart (the adaptive family does).
+    fn build_slice(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist> {
+        self.build(values, n_phi_h, n_theta_h)
+    }
+}
+
 /// A density over the unit square [0, 1)^2 that can be sampled by inversion.
 ///
 /// Implementations that factor the density into a marginal and conditionals

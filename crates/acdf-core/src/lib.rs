@@ -46,7 +46,7 @@ pub use simd::{cpu, fast, search};
 
 pub use brdf::{fingerprint_by_eval, luminance, Brdf, Fingerprinter, Rgb, LUMINANCE_WEIGHTS};
 pub use distribution::{
-    clamp_unit, validate_table, Distribution1D, Distribution2D, Sample1D, Sample2D,
+    clamp_unit, validate_table, Distribution1D, Distribution2D, Sample1D, Sample2D, TableBuilder,
     ONE_MINUS_EPSILON,
 };
 pub use error::{Error, Result};

@@ -3,28 +3,12 @@
 //! sphere.
 
 use acdf_core::simd::Avx2;
+pub use acdf_core::TableBuilder;
 use acdf_core::{Distribution2D, Result, Sample2D, SphereSample, SphereSampler, Vec2, Vec3};
 
 use crate::envmap::EnvMap;
 use crate::latlong::LatLong;
 use crate::tables::TableKind;
-
-/// Builds the 2D distribution of a table: what a sampler plug-in supplies
-/// (a piecewise-constant or an adaptive CDF).
-///
-/// The distribution must keep its density constant over every table cell
-/// (cells of the table may be merged, never split): the samplers look a
-/// texel's density up at its centre.
-pub trait TableBuilder: Send + Sync {
-    /// The distribution built.
-    type Dist: Distribution2D;
-
-    /// The name of the family, e.g. `uniform` or `adaptive:chi2`.
-    fn name(&self) -> String;
-
-    /// Build from `values`, `ny` rows of `nx` non-negative entries.
-    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<Self::Dist>;
-}
 
 /// Directions over the sphere drawn from a 2D distribution over the texels
 /// of a lat-long grid: a point (u, v) of the distribution becomes the

@@ -66,8 +66,8 @@ use std::sync::{Arc, OnceLock};
 ///
 /// # Examples
 ///
-/// A sampler family is a [`SliceBuilder`] and the [`SliceDistribution`] it
-/// builds. The plug-ins `acdf-uniform` and `acdf-adaptive` provide the
+/// A sampler family is a [`TableBuilder`](acdf_core::TableBuilder) and the
+/// [`SliceDistribution`] it builds. The plug-ins `acdf-uniform` and `acdf-adaptive` provide the
 /// real ones (`UniformBrdfSampler`, `AdaptiveBrdfSampler`); this crate
 /// depends on no plug-in, so the example brings the smallest family of its
 /// own, a distribution uniform over the half-vector square, and samples a
@@ -75,9 +75,10 @@ use std::sync::{Arc, OnceLock};
 ///
 /// ```
 /// use acdf_core::{
-///     Brdf, BxdfSampler, Distribution2D, Result, Rgb, Sample2D, Vec2, Vec3, clamp_unit,
+///     Brdf, BxdfSampler, Distribution2D, Result, Rgb, Sample2D, TableBuilder, Vec2, Vec3,
+///     clamp_unit,
 /// };
-/// use acdf_tabulated::{Resolution, SliceBuilder, SliceDistribution, TabulatedBrdfSampler};
+/// use acdf_tabulated::{Resolution, SliceDistribution, TabulatedBrdfSampler};
 /// use std::sync::Arc;
 ///
 /// /// Uniform over [0, 1)^2, whatever the table.
@@ -107,12 +108,12 @@ use std::sync::{Arc, OnceLock};
 ///
 /// struct FlatBuilder;
 ///
-/// impl SliceBuilder for FlatBuilder {
+/// impl TableBuilder for FlatBuilder {
 ///     type Dist = Flat;
 ///     fn name(&self) -> String {
 ///         "flat".into()
 ///     }
-///     fn build(&self, _values: &[f32], _n_phi_h: usize, _n_theta_h: usize) -> Result<Flat> {
+///     fn build(&self, _values: &[f32], _nx: usize, _ny: usize) -> Result<Flat> {
 ///         Ok(Flat)
 ///     }
 /// }
@@ -290,7 +291,7 @@ impl<B: SliceBuilder> TabulatedBrdfSampler<B> {
                 let res = &self.resolution;
                 let (i, j) = (index / res.phi_o, index % res.phi_o);
                 let values = tabulate_slice(&*self.brdf, res, i, j);
-                self.builder.build(&values, res.phi_h, res.theta_h)
+                self.builder.build_slice(&values, res.phi_h, res.theta_h)
             })
             .as_ref()
     }

@@ -9,11 +9,13 @@
 //!   operation has a correct default, so a new distribution needs nothing
 //!   beyond `Distribution2D` to work; it overrides what it can answer
 //!   faster.
-//! - [`SliceBuilder`] is the construction side: the sampler's name and how a
-//!   tabulated slice becomes a distribution (for instance with which curve
-//!   simplifier and tolerance).
+//! - The construction side is `acdf_core`'s [`TableBuilder`], the one
+//!   builder trait of slices and environment tables: the sampler's name and
+//!   how a tabulated slice becomes a distribution (for instance with which
+//!   curve simplifier and tolerance). [`SliceBuilder`] names the builders
+//!   whose distribution is a [`SliceDistribution`].
 
-use acdf_core::{Distribution2D, Result, Sample2D, Vec2};
+use acdf_core::{Distribution2D, Sample2D, TableBuilder, Vec2};
 
 /// A distribution over the unit square (x → φ_h, y → θ_h) that a
 /// [`TabulatedBrdfSampler`](crate::TabulatedBrdfSampler) draws half vectors
@@ -107,18 +109,10 @@ pub trait SliceDistribution: Distribution2D + Send + Sync + Sized {
     }
 }
 
-/// What a tabulated half-vector slice becomes: the construction side of a
-/// sampler family.
-pub trait SliceBuilder: Send + Sync {
-    /// The distribution a slice becomes.
-    type Dist: SliceDistribution;
+/// A [`TableBuilder`] whose distribution can be a slice's: the builder of
+/// a tabulated sampler family, which builds each slice with
+/// [`TableBuilder::build_slice`]. Every such builder is one; a family
+/// implements [`TableBuilder`] only.
+pub trait SliceBuilder: TableBuilder<Dist: SliceDistribution> {}
 
-    /// The name used as the sampler name, e.g. `uniform` or `adaptive:dp`.
-    fn name(&self) -> String;
-
-    /// Build the distribution of one slice. `values` is row-major,
-    /// `n_theta_h` rows (y, θ_h) of `n_phi_h` columns (x, φ_h); every value is
-    /// finite and non-negative, and the rows are spaced as
-    /// [`tabulate`](crate::tabulate) documents.
-    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist>;
-}
+impl<B: TableBuilder<Dist: SliceDistribution>> SliceBuilder for B {}

@@ -739,7 +739,7 @@ impl Tabulation {
         let dists = self
             .slices
             .par_iter()
-            .map(|values| builder.build(values, r.phi_h, r.theta_h))
+            .map(|values| builder.build_slice(values, r.phi_h, r.theta_h))
             .collect::<std::result::Result<Vec<_>, _>>()?;
         let sampler =
             TabulatedBrdfSampler::from_built_slices(material.brdf.clone(), r, builder, dists)?;

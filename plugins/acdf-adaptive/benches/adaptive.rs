@@ -11,8 +11,8 @@
 use acdf_adaptive_cdf::{
     AdaptiveBuilder, AdaptiveCdf1D, AdaptiveCdf2D, DouglasPeucker, Simplifier,
 };
-use acdf_core::{Distribution1D, Distribution2D, Sample1D, Sample2D, Vec2};
-use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, SliceDistribution};
+use acdf_core::{Distribution1D, Distribution2D, Sample1D, Sample2D, TableBuilder, Vec2};
+use acdf_tabulated::{tabulate_slice, Resolution, SliceDistribution};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
@@ -38,7 +38,7 @@ fn nickel_slice() -> (Vec<f32>, usize, usize) {
 fn distribution_2d(c: &mut Criterion) {
     let (values, nx, ny) = nickel_slice();
     let builder = AdaptiveBuilder::by_name("dp", None).unwrap();
-    let d: AdaptiveCdf2D = builder.build(&values, nx, ny).unwrap();
+    let d: AdaptiveCdf2D = builder.build_slice(&values, nx, ny).unwrap();
     let u = uniform_pairs(1);
     let points: Vec<Vec2> = u.iter().map(|&u| d.sample(u).p).collect();
     let mut group = c.benchmark_group("adaptive_2d_nickel_256x32");
@@ -101,7 +101,7 @@ fn distribution_2d(c: &mut Criterion) {
     group.bench_function("build", |b| {
         b.iter_batched(
             || values.clone(),
-            |v| builder.build(&v, nx, ny).unwrap(),
+            |v| builder.build_slice(&v, nx, ny).unwrap(),
             BatchSize::SmallInput,
         )
     });

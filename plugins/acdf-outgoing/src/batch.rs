@@ -176,7 +176,7 @@ struct PointLanes {
 }
 
 /// The draws of a chunk in the shading frame, one array per quantity.
-struct DrawLanes {
+struct ChunkDraws {
     wi_x: Lanes,
     wi_y: Lanes,
     wi_z: Lanes,
@@ -187,7 +187,7 @@ struct DrawLanes {
 }
 
 /// The coordinates of a chunk of wi, one array per quantity.
-struct CoordinateLanes {
+struct ChunkCoordinates {
     x: Lanes,
     v: Lanes,
     sin_h: Lanes,
@@ -195,7 +195,7 @@ struct CoordinateLanes {
     defined: [bool; CHUNK],
 }
 
-impl CoordinateLanes {
+impl ChunkCoordinates {
     /// Lane l's coordinates.
     #[inline(always)]
     fn at(&self, l: usize) -> Coordinates {
@@ -388,7 +388,7 @@ impl OutgoingSampler {
         let (mut sin_p, mut cos_p): (Lanes, Lanes) = ([0.0; CHUNK], [0.0; CHUNK]);
         sin_cos_quarter_turns_each(&squares[..n], &mut sin_h[..n], &mut cos_h[..n]);
         sin_cos_turns_each(&points.x[..n], &mut sin_p[..n], &mut cos_p[..n]);
-        let mut draws = DrawLanes {
+        let mut draws = ChunkDraws {
             wi_x: [0.0; CHUNK],
             wi_y: [0.0; CHUNK],
             wi_z: [0.0; CHUNK],
@@ -435,7 +435,7 @@ impl OutgoingSampler {
     fn pdf_chunk<F: Frames>(&self, kernel: Kernel<'_>, frames: &F, wi: &[Vec3], out: &mut [f32]) {
         let n = wi.len().min(out.len()).min(CHUNK);
         let map = self.map;
-        let mut lanes = CoordinateLanes {
+        let mut lanes = ChunkCoordinates {
             x: [0.0; CHUNK],
             v: [0.0; CHUNK],
             sin_h: [0.0; CHUNK],

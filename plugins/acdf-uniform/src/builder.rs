@@ -4,22 +4,25 @@
 
 use crate::PiecewiseConstant2D;
 use acdf_core::Result;
+use acdf_core::TableBuilder;
 use acdf_tabulated::persist::{ByteReader, ByteWriter, Persist, PersistBuilder, PersistError};
-use acdf_tabulated::{SliceBuilder, TabulatedBrdfSampler};
+use acdf_tabulated::TabulatedBrdfSampler;
 
 /// Builds [`PiecewiseConstant2D`] slices: the uniform tabulation itself.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PiecewiseConstantBuilder;
 
-impl SliceBuilder for PiecewiseConstantBuilder {
+/// The table as it is, one cell per table entry, for slices and
+/// environment tables alike.
+impl TableBuilder for PiecewiseConstantBuilder {
     type Dist = PiecewiseConstant2D;
 
     fn name(&self) -> String {
         "uniform".to_string()
     }
 
-    fn build(&self, values: &[f32], n_phi_h: usize, n_theta_h: usize) -> Result<Self::Dist> {
-        PiecewiseConstant2D::new(values, n_phi_h, n_theta_h)
+    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<PiecewiseConstant2D> {
+        PiecewiseConstant2D::new(values, nx, ny)
     }
 }
 

@@ -62,7 +62,7 @@ pub const MAX_CELLS: usize = 1 << 24;
 /// [`SHORT_WINDOW`] entries, narrower than the shared guide's: here G is
 /// at least the number of cells, so intervals hold few entries.
 #[derive(Debug, Clone, PartialEq, Default)]
-struct Guide {
+struct CdfGuide {
     index: search::Guide,
     /// G.
     cells: usize,
@@ -83,16 +83,16 @@ struct Guide {
 /// searched, which costs a draw about as much as G = n does.
 pub(crate) const MARGINAL_GUIDE_CELLS: usize = 256;
 
-impl Guide {
+impl CdfGuide {
     /// The guide of a stored CDF (all n entries, the last being 1; the
     /// searched entries are the first n - 1) with G = n intervals.
-    fn new(cdf: &[f32]) -> Guide {
+    fn new(cdf: &[f32]) -> CdfGuide {
         Self::with_cells(cdf, cdf.len())
     }
 
     /// The guide of a stored CDF with G = `g_count` intervals (at least 1).
-    fn with_cells(cdf: &[f32], g_count: usize) -> Guide {
-        Guide {
+    fn with_cells(cdf: &[f32], g_count: usize) -> CdfGuide {
+        CdfGuide {
             index: search::Guide::new(&cdf[..cdf.len().saturating_sub(1)], g_count),
             cells: g_count,
         }
@@ -118,14 +118,14 @@ impl Guide {
     /// The number of entries of `cdf[..n - 1]` that are `<= u`, for the CDF
     /// the guide was built from and u in [0, 1).
     #[inline(always)]
-    fn count_at_or_below(&self, cdf: &[f32], u: f32) -> usize {
+    fn guided_count(&self, cdf: &[f32], u: f32) -> usize {
         if self.is_empty() {
             return count_sorted(&cdf[..cdf.len() - 1], u);
         }
         self.count_from_cell(cdf, u, self.cell(u))
     }
 
-    /// [`count_at_or_below`](Self::count_at_or_below) for a guide that
+    /// [`guided_count`](Self::guided_count) for a guide that
     /// exists, given g = [`cell`](Self::cell)`(u)`.
     #[inline(always)]
     fn count_from_cell(&self, cdf: &[f32], u: f32, g: usize) -> usize {
@@ -315,7 +315,7 @@ pub struct PiecewiseConstant1D {
     cdf: Vec<f32>,
     integral: f64,
     /// Derived from `cdf`.
-    guide: Guide,
+    guide: CdfGuide,
 }
 
 impl PiecewiseConstant1D {
@@ -330,7 +330,7 @@ impl PiecewiseConstant1D {
         let total = build_cdf(values.iter().map(|&v| v as f64), &mut cdf);
         Ok(PiecewiseConstant1D {
             integral: total / values.len() as f64,
-            guide: Guide::new(&cdf),
+            guide: CdfGuide::new(&cdf),
             cdf,
         })
     }
@@ -386,7 +386,7 @@ impl Distribution1D for PiecewiseConstant1D {
     #[inline]
     fn sample(&self, u: f32) -> Sample1D {
         let u = clamp_unit(u);
-        let k = self.guide.count_at_or_below(&self.cdf, u);
+        let k = self.guide.guided_count(&self.cdf, u);
         self.finish(k, u)
     }
 
@@ -479,7 +479,7 @@ pub struct PiecewiseConstant2D {
     marginal: Vec<f32>,
     integral: f64,
     /// The guide of `marginal`, derived from it.
-    marginal_guide: Guide,
+    marginal_guide: CdfGuide,
     /// nx and ny as `f32` and their reciprocals, derived from them: a draw
     /// would otherwise convert both and divide twice.
     scale: GridScale,
@@ -714,8 +714,8 @@ fn inside_drawn_cell(x: f32, k: usize, nf: f32, m: f32) -> bool {
 }
 
 /// The guide of a 2D marginal: [`MARGINAL_GUIDE_CELLS`] intervals.
-fn marginal_guide(marginal: &[f32]) -> Guide {
-    Guide::with_cells(marginal, MARGINAL_GUIDE_CELLS)
+fn marginal_guide(marginal: &[f32]) -> CdfGuide {
+    CdfGuide::with_cells(marginal, MARGINAL_GUIDE_CELLS)
 }
 
 /// The product of a marginal and a conditional density, kept from

@@ -4,20 +4,7 @@
 
 use crate::{PiecewiseConstant2D, PiecewiseConstantBuilder};
 use acdf_core::Result;
-use acdf_lights::{EnvMap, LatLongSampler, TableBuilder, TableKind};
-
-/// The table as it is, one cell per texel.
-impl TableBuilder for PiecewiseConstantBuilder {
-    type Dist = PiecewiseConstant2D;
-
-    fn name(&self) -> String {
-        "uniform".to_string()
-    }
-
-    fn build(&self, values: &[f32], nx: usize, ny: usize) -> Result<PiecewiseConstant2D> {
-        PiecewiseConstant2D::new(values, nx, ny)
-    }
-}
+use acdf_lights::{EnvMap, LatLongSampler, TableKind};
 
 /// Directions drawn from a piecewise-constant table over the texels of a
 /// lat-long map: `uniform` (luminance × solid angle) and `uniform-comp`

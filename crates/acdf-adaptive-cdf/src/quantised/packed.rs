@@ -3,6 +3,7 @@
 //! along φ_h) and 16-bit CDF values, sampled and evaluated in that form.
 
 use crate::AdaptiveCdf2D;
+use acdf_core::search::{count_one, Key};
 use acdf_core::{Error, Result};
 
 /// The largest quantised CDF value: a CDF value c is stored as
@@ -49,23 +50,14 @@ pub struct PackedCdf2D {
     conditional_pos: Vec<u8>,
 }
 
-/// The entries compared at once by [`count_at_or_below`]: 32 lanes of 16
-/// or 8 bits, four or two SSE2 compares.
-pub const LANES: usize = acdf_core::search::NARROW_WINDOW;
-
-/// A stored vertex position or CDF value: an unsigned integer that
-/// counts the stored values at or below a point in 16-bit or 8-bit
-/// lanes.
-pub trait Stored: Copy {
+/// A stored vertex position or CDF value: an unsigned integer, searched
+/// with the workspace's one search ([`count_one`]).
+pub trait Stored: Key {
     /// The value as a float.
     fn float(self) -> f32;
     /// The key of a point t >= 0 in the values' units: floor(t), clamped to
     /// the type's range. For an integer p, p <= t exactly when p <= key.
     fn key(t: f32) -> Self;
-    /// Bit l set where `window[l] <= key`.
-    fn window_mask(window: &[Self; LANES], key: Self) -> u32;
-    /// `value <= key`, one entry at a time.
-    fn at_or_below(self, key: Self) -> bool;
 }
 
 impl Stored for u16 {
@@ -76,14 +68,6 @@ impl Stored for u16 {
     #[inline(always)]
     fn key(t: f32) -> u16 {
         t.max(0.0).min(u16::MAX as f32) as u16
-    }
-    #[inline(always)]
-    fn window_mask(window: &[u16; LANES], key: u16) -> u32 {
-        acdf_core::search::window_at_or_below_u16(window, key)
-    }
-    #[inline(always)]
-    fn at_or_below(self, key: u16) -> bool {
-        self <= key
     }
 }
 
@@ -96,76 +80,12 @@ impl Stored for u8 {
     fn key(t: f32) -> u8 {
         t.max(0.0).min(u8::MAX as f32) as u8
     }
-    #[inline(always)]
-    fn window_mask(window: &[u8; LANES], key: u8) -> u32 {
-        acdf_core::search::window_at_or_below_u8(window, key)
-    }
-    #[inline(always)]
-    fn at_or_below(self, key: u8) -> bool {
-        self <= key
-    }
-}
-
-/// The number of entries of the non-decreasing `data[start..start + len]`
-/// at or below `key`.
-///
-/// A window of [`LANES`] entries holding the list's next entries (or
-/// ending at the end of `data` when it would run past it) is compared at
-/// once, and the count is the run of ones of the mask from the list's
-/// first entry, cut at the list's length: the entries around the list may
-/// be anything. A list longer than a window takes a window per [`LANES`]
-/// entries until one is not wholly at or below the key. The curves of a
-/// slice at the default tolerance fit one window, so the searches of a
-/// draw are a few compares with no loop over the vertices. A `data`
-/// shorter than a window is counted one entry at a time.
-#[inline(always)]
-pub fn count_at_or_below<P: Stored>(data: &[P], start: usize, len: usize, key: P) -> usize {
-    if data.len() < LANES {
-        return data[start..start + len]
-            .iter()
-            .map(|&p| p.at_or_below(key) as usize)
-            .sum();
-    }
-    if len > LANES && len <= 2 * LANES && data.len() >= 2 * LANES {
-        // Two windows at once, so that whether the list's count reaches
-        // the second is not a branch on the data (a marginal of 34 to 65
-        // vertices, as the default tolerance keeps): the window pair
-        // starts at the list or ends at the end of `data`, so the shift is
-        // at most 2 LANES - len and the mask holds the whole list.
-        let first = start.min(data.len() - 2 * LANES);
-        let window = |at: usize| -> &[P; LANES] {
-            data[at..at + LANES]
-                .try_into()
-                .expect("a window of LANES entries")
-        };
-        let low = u64::from(P::window_mask(window(first), key));
-        let high = u64::from(P::window_mask(window(first + LANES), key));
-        let mask = (low | high << LANES) >> (start - first);
-        return (mask.trailing_ones() as usize).min(len);
-    }
-    let (mut start, mut left, mut count) = (start, len, 0);
-    loop {
-        let first = start.min(data.len() - LANES);
-        let window: &[P; LANES] = data[first..first + LANES]
-            .try_into()
-            .expect("a window of LANES entries");
-        // A u64 so that the shift (at most LANES, for an empty list at the
-        // very end) is defined.
-        let mask = u64::from(P::window_mask(window, key)) >> (start - first);
-        let n = (mask.trailing_ones() as usize).min(left);
-        count += n;
-        if n < LANES || left == LANES {
-            return count;
-        }
-        start += LANES;
-        left -= LANES;
-    }
 }
 
 /// One curve of a slice: `len` positions from `pos` in `pos_data` and as
 /// many CDF values from `cdf` in `cdf_data`.
 #[derive(Clone, Copy)]
-pub struct Curve<'a, P> {
+pub struct QuantisedCurve<'a, P> {
     pub pos_data: &'a [P],
     pub pos: usize,
     pub cdf_data: &'a [u16],
@@ -173,7 +93,7 @@ pub struct Curve<'a, P> {
     pub len: usize,
 }
 
-impl<P: Stored> Curve<'_, P> {
+impl<P: Stored> QuantisedCurve<'_, P> {
     /// The positions and CDF values of vertices j and j + 1 (one bounds
     /// check each).
     #[inline(always)]
@@ -187,17 +107,17 @@ impl<P: Stored> Curve<'_, P> {
     /// vertices at or below it.
     #[inline(always)]
     fn segment_of(&self, t: f32) -> usize {
-        count_at_or_below(self.pos_data, self.pos + 1, self.len - 2, P::key(t))
+        count_one(self.pos_data, self.pos + 1, self.len - 2, P::key(t))
     }
 
     /// Invert the curve at u in [0, 1): (position in [0, 1), segment, its
     /// density). The segment is the last vertex whose CDF is at or below u
     /// (zero-mass segments are never chosen).
     #[inline(always)]
-    pub fn sample(&self, n: f32, u: f32) -> (f32, usize, Segment) {
+    pub fn sample(&self, n: f32, u: f32) -> (f32, usize, QuantisedSegment) {
         let us = u * QF;
-        let j = count_at_or_below(self.cdf_data, self.cdf + 1, self.len - 2, u16::key(us));
-        let s = Segment::new(self.segment(j));
+        let j = count_one(self.cdf_data, self.cdf + 1, self.len - 2, u16::key(us));
+        let s = QuantisedSegment::new(self.segment(j));
         let (c0, c1) = (s.c.0 as f32, s.c.1 as f32);
         let frac = if c1 > c0 {
             ((us - c0) / (c1 - c0)).clamp(0.0, 1.0)
@@ -211,15 +131,15 @@ impl<P: Stored> Curve<'_, P> {
 
 /// One segment of a curve: its end positions (grid units) and CDF values.
 #[derive(Clone, Copy)]
-pub struct Segment {
+pub struct QuantisedSegment {
     pub p: (f32, f32),
     pub c: (u16, u16),
 }
 
-impl Segment {
+impl QuantisedSegment {
     #[inline(always)]
     fn new((p, c): ((f32, f32), (u16, u16))) -> Self {
-        Segment { p, c }
+        QuantisedSegment { p, c }
     }
 
     /// The density over [0, 1) of a curve over `n` cells.
@@ -360,8 +280,8 @@ impl PackedCdf2D {
 
     /// The marginal curve (of a validated slice).
     #[inline(always)]
-    fn marginal(&self) -> Curve<'_, u16> {
-        Curve {
+    fn marginal(&self) -> QuantisedCurve<'_, u16> {
+        QuantisedCurve {
             pos_data: &self.values,
             pos: 0,
             cdf_data: &self.values,
@@ -372,10 +292,10 @@ impl PackedCdf2D {
 
     /// Conditional j (of a validated slice, j a segment with mass).
     #[inline(always)]
-    fn conditional(&self, j: usize) -> Curve<'_, u8> {
+    fn conditional(&self, j: usize) -> QuantisedCurve<'_, u8> {
         let at = &self.values[self.offsets_at + j..self.offsets_at + j + 2];
         let (a, b) = (at[0] as usize, at[1] as usize);
-        Curve {
+        QuantisedCurve {
             pos_data: &self.conditional_pos,
             pos: a,
             cdf_data: &self.values,
@@ -414,7 +334,7 @@ impl PackedCdf2D {
         let marginal = self.marginal();
         let ty = y * n_y;
         let j = marginal.segment_of(ty);
-        let sy = Segment::new(marginal.segment(j));
+        let sy = QuantisedSegment::new(marginal.segment(j));
         let same_y = sy.inside(ty, margin.1 * n_y);
         if sy.c.1 == sy.c.0 {
             return Located {
@@ -425,7 +345,7 @@ impl PackedCdf2D {
         }
         let conditional = self.conditional(j);
         let tx = x * n_x;
-        let sx = Segment::new(conditional.segment(conditional.segment_of(tx)));
+        let sx = QuantisedSegment::new(conditional.segment(conditional.segment_of(tx)));
         Located {
             p: (x, y),
             pdf: sy.density(n_y) * sx.density(n_x),
@@ -633,10 +553,10 @@ mod tests {
                     let key = P::try_from(key).unwrap();
                     let expected = noise[start..start + len]
                         .iter()
-                        .filter(|&&p| p.at_or_below(key))
+                        .filter(|&&p| p <= key)
                         .count();
                     assert_eq!(
-                        count_at_or_below(&noise, start, len, key),
+                        count_one(&noise, start, len, key),
                         expected,
                         "{len} of {total} from {start}, key {key:?}"
                     );
@@ -653,8 +573,8 @@ mod tests {
         counts_agree::<u8>(33);
     }
 
-    /// The SSE2 window masks equal the portable ones bit for bit, keys at
-    /// and around every entry and the ends of the range included.
+    /// Quantising keeps every segment with mass at one unit or more, even
+    /// one 1e-12 of the total, and gives none to a segment without.
     #[test]
     fn quantised_cdfs_keep_every_positive_segment() {
         let masses = [1.0, 1e-12, 0.0, 3.0, 1e-9, 0.0];

@@ -22,11 +22,12 @@
 //! ([`quantise`]).
 
 use super::packed::{
-    check_curve, check_offsets, conditional_masses, count_at_or_below, grid_indices, quantise,
-    Curve, Segment, Stored, Q, QF,
+    check_curve, check_offsets, conditional_masses, grid_indices, quantise, QuantisedCurve,
+    QuantisedSegment, Stored, Q, QF,
 };
 use crate::simplify::Simplifier;
 use crate::AdaptiveCdf2D;
+use acdf_core::search::count_one;
 #[cfg(target_arch = "x86_64")]
 use acdf_core::simd::shared_grid::SharedGrid;
 use acdf_core::{Error, Result};
@@ -317,8 +318,8 @@ impl SharedSlices {
 
     /// The marginal curve of slice `s`.
     #[inline(always)]
-    fn marginal(&self, s: usize) -> Curve<'_, u16> {
-        Curve {
+    fn marginal(&self, s: usize) -> QuantisedCurve<'_, u16> {
+        QuantisedCurve {
             pos_data: &self.grid,
             pos: 0,
             cdf_data: &self.cdf,
@@ -364,7 +365,7 @@ impl SharedSlices {
         let (n_x, n_y) = n;
         let (y, j, sy) = self.marginal(s).sample(n_y, u_y);
         let (a, b) = self.conditional_range(j);
-        let conditional = Curve {
+        let conditional = QuantisedCurve {
             pos_data: &self.conditional_pos,
             pos: a,
             cdf_data: &self.cdf,
@@ -392,8 +393,8 @@ impl SharedSlices {
         let (n_x, n_y) = n;
         let m = self.m;
         let ty = y * n_y;
-        let j = count_at_or_below(&self.grid, 1, m - 2, u16::key(ty));
-        let sy = Segment {
+        let j = count_one(&self.grid, 1, m - 2, u16::key(ty));
+        let sy = QuantisedSegment {
             p: (self.grid[j] as f32, self.grid[j + 1] as f32),
             c: (0, 0),
         };
@@ -403,8 +404,8 @@ impl SharedSlices {
             return (None, same_y);
         }
         let tx = x * n_x;
-        let i = count_at_or_below(&self.conditional_pos, a + 1, b - a - 2, u8::key(tx));
-        let sx = Segment {
+        let i = count_one(&self.conditional_pos, a + 1, b - a - 2, u8::key(tx));
+        let sx = QuantisedSegment {
             p: (
                 self.conditional_pos[a + i] as f32,
                 self.conditional_pos[a + i + 1] as f32,

@@ -29,24 +29,64 @@ pub mod narrow;
 /// columns has at most 33 vertices, whose inner 31 fit.
 pub const WINDOW: usize = 32;
 
+/// An entry of the sorted lists searched here: `f32` positions and CDF
+/// values, `u32` packed vertices, 16- and 8-bit quantised CDF values. The
+/// searches below are written once for all of them; an entry type brings
+/// only its compare of one window.
+pub trait Key: Copy + PartialOrd {
+    /// Bit k set where `window[k] <= key`.
+    fn window_mask(window: &[Self; WINDOW], key: Self) -> u32;
+}
+
+impl Key for f32 {
+    #[inline(always)]
+    fn window_mask(window: &[f32; WINDOW], key: f32) -> u32 {
+        at_or_below_mask(window, key)
+    }
+}
+
+impl Key for u32 {
+    #[inline(always)]
+    fn window_mask(window: &[u32; WINDOW], key: u32) -> u32 {
+        window_at_or_below_u32(window, key)
+    }
+}
+
+impl Key for u16 {
+    #[inline(always)]
+    fn window_mask(window: &[u16; WINDOW], key: u16) -> u32 {
+        window_at_or_below_u16(window, key)
+    }
+}
+
+impl Key for u8 {
+    #[inline(always)]
+    fn window_mask(window: &[u8; WINDOW], key: u8) -> u32 {
+        window_at_or_below_u8(window, key)
+    }
+}
+
 /// For each lane l, the number of entries of the non-decreasing list
-/// `data[start..start + len]` that are `<= v[l]` (all lanes share the list).
+/// `data[start..start + len]` that are `<= keys[l]` (all lanes share the
+/// list): the one search of every piecewise CDF in the workspace.
 ///
 /// A four-way search cuts the list down to at most [`WINDOW`] candidates,
 /// which [`count_window`] then compares at once. The candidates for the
 /// answer are kept as an interval [lo, lo + n]: three probes split it into
 /// quarters of q = floor(n / 4) entries, and the number of probes at or
-/// below v (added as integers, so no branch) says which quarter holds the
-/// answer; the interval keeps the last quarter's length n - 3q in every
+/// below the key (added as integers, so no branch) says which quarter holds
+/// the answer; the interval keeps the last quarter's length n - 3q in every
 /// case, which is never shorter than the others, so the number of steps
 /// depends on `len` only. The lanes thus step together, and their
-/// independent loads overlap.
+/// independent loads overlap. A list of at most [`WINDOW`] entries (a
+/// conditional over 32 φ_h columns, every curve of a slice at the default
+/// tolerance) takes no step: one window compare is the whole search.
 #[inline(always)]
-pub fn count_at_or_below<const L: usize>(
-    data: &[f32],
+pub fn count_at_or_below<K: Key, const L: usize>(
+    data: &[K],
     start: usize,
     len: usize,
-    v: [f32; L],
+    keys: [K; L],
 ) -> [usize; L] {
     let mut lo = [start; L];
     let mut n = len;
@@ -54,30 +94,43 @@ pub fn count_at_or_below<const L: usize>(
     let stop = if data.len() >= WINDOW { WINDOW } else { 3 };
     while n > stop {
         let q = n / 4;
-        for (lo, &v) in lo.iter_mut().zip(&v) {
-            let probe = |k: usize| (data[*lo + k * q - 1] <= v) as usize;
+        for (lo, &key) in lo.iter_mut().zip(&keys) {
+            let probe = |k: usize| (data[*lo + k * q - 1] <= key) as usize;
             let quarters = probe(1) + probe(2) + probe(3);
             *lo += q * quarters;
         }
         n -= 3 * q;
     }
-    for (lo, &v) in lo.iter_mut().zip(&v) {
+    for (lo, &key) in lo.iter_mut().zip(&keys) {
         *lo = *lo - start
             + if stop == WINDOW {
-                count_window(data, *lo, n, v)
+                count_window(data, *lo, n, key)
             } else {
-                count_few(data, *lo, n, v)
+                count_few(data, *lo, n, key)
             };
     }
     lo
+}
+
+/// The number of entries of the non-decreasing `data[start..start + len]`
+/// that are `<= key` ([`count_at_or_below`] for one key).
+#[inline(always)]
+pub fn count_one<K: Key>(data: &[K], start: usize, len: usize, key: K) -> usize {
+    count_at_or_below(data, start, len, [key])[0]
+}
+
+/// The number of entries of the non-decreasing `list` that are `<= key`.
+#[inline(always)]
+pub fn count_sorted<K: Key>(list: &[K], key: K) -> usize {
+    count_one(list, 0, list.len(), key)
 }
 
 /// The number of entries of `data[start..start + n]`, n <= 3, that are
 /// `<= v` (n depends on the list's length only, so its branches are
 /// predicted).
 #[inline(always)]
-fn count_few(data: &[f32], start: usize, n: usize, v: f32) -> usize {
-    let at_or_below = |k: usize| (data[start + k] <= v) as usize;
+fn count_few<K: Key>(data: &[K], start: usize, n: usize, key: K) -> usize {
+    let at_or_below = |k: usize| (data[start + k] <= key) as usize;
     let mut count = 0;
     if n >= 1 {
         count += at_or_below(0);
@@ -102,14 +155,14 @@ fn count_few(data: &[f32], start: usize, n: usize, v: f32) -> usize {
 /// when it would run past it. No loop whose trip count changes from draw to
 /// draw, no data-dependent branch.
 #[inline(always)]
-pub fn count_window(data: &[f32], start: usize, len: usize, v: f32) -> usize {
+pub fn count_window<K: Key>(data: &[K], start: usize, len: usize, key: K) -> usize {
     let first = start.min(data.len() - WINDOW);
-    let window: &[f32; WINDOW] = data[first..first + WINDOW]
+    let window: &[K; WINDOW] = data[first..first + WINDOW]
         .try_into()
         .expect("a window of WINDOW entries");
     // A u64 so that the shift (at most WINDOW, for an empty list at the very
     // end) is defined.
-    let mask = u64::from(at_or_below_mask(window, v)) >> (start - first);
+    let mask = u64::from(K::window_mask(window, key)) >> (start - first);
     (mask.trailing_ones() as usize).min(len)
 }
 
@@ -223,25 +276,6 @@ fn at_or_below_mask_portable(window: &[f32; WINDOW], v: f32) -> u32 {
         .iter()
         .enumerate()
         .fold(0, |mask, (k, &e)| mask | ((e <= v) as u32) << k)
-}
-
-/// The number of entries of the non-decreasing `data[start..start + len]`
-/// that are `<= v`: [`count_window`] for a short list, else
-/// [`count_at_or_below`].
-#[inline(always)]
-pub fn count_short_or_search(data: &[f32], start: usize, len: usize, v: f32) -> usize {
-    if len <= WINDOW && data.len() >= WINDOW {
-        count_window(data, start, len, v)
-    } else {
-        count_at_or_below(data, start, len, [v])[0]
-    }
-}
-
-/// The number of entries of the non-decreasing `list` that are `<= v`
-/// ([`count_short_or_search`] over the whole list).
-#[inline(always)]
-pub fn count_sorted(list: &[f32], v: f32) -> usize {
-    count_short_or_search(list, 0, list.len(), v)
 }
 
 /// The width of a short window: one eight-wide compare.
@@ -411,22 +445,13 @@ impl Guide {
     #[inline(always)]
     pub fn count(&self, data: &[f32], start: usize, v: f32, g: usize) -> usize {
         let (a, b) = (self.lo[g] as usize, self.lo[g + 1] as usize);
-        a + if b - a <= WINDOW && data.len() >= WINDOW {
-            count_window(data, start + a, b - a, v)
-        } else {
-            count_at_or_below(data, start + a, b - a, [v])[0]
-        }
+        a + count_one(data, start + a, b - a, v)
     }
 }
 
-/// The entries of a window of 8- or 16-bit values compared at once by
-/// [`window_at_or_below_u16`] and [`window_at_or_below_u8`]: the
-/// quantised CDFs of the outgoing sampler.
-pub const NARROW_WINDOW: usize = 32;
-
 /// Bit l set where `window[l] <= key`, for 16-bit values.
 #[inline(always)]
-pub fn window_at_or_below_u16(window: &[u16; NARROW_WINDOW], key: u16) -> u32 {
+pub fn window_at_or_below_u16(window: &[u16; WINDOW], key: u16) -> u32 {
     #[cfg(target_arch = "x86_64")]
     {
         mask_u16_sse2(window, key)
@@ -439,7 +464,7 @@ pub fn window_at_or_below_u16(window: &[u16; NARROW_WINDOW], key: u16) -> u32 {
 
 /// Bit l set where `window[l] <= key`, for 8-bit values.
 #[inline(always)]
-pub fn window_at_or_below_u8(window: &[u8; NARROW_WINDOW], key: u8) -> u32 {
+pub fn window_at_or_below_u8(window: &[u8; WINDOW], key: u8) -> u32 {
     #[cfg(target_arch = "x86_64")]
     {
         mask_u8_sse2(window, key)
@@ -455,7 +480,7 @@ pub fn window_at_or_below_u8(window: &[u8; NARROW_WINDOW], key: u8) -> u32 {
 /// hold the SSE2 forms to.
 #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 #[inline(always)]
-fn narrow_mask_portable<P: Copy + PartialOrd>(window: &[P; NARROW_WINDOW], key: P) -> u32 {
+fn narrow_mask_portable<P: Copy + PartialOrd>(window: &[P; WINDOW], key: P) -> u32 {
     window
         .iter()
         .enumerate()
@@ -467,7 +492,7 @@ fn narrow_mask_portable<P: Copy + PartialOrd>(window: &[P; NARROW_WINDOW], key: 
 /// zero; the word compares are narrowed to bytes and read as bit masks.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn mask_u16_sse2(window: &[u16; NARROW_WINDOW], key: u16) -> u32 {
+fn mask_u16_sse2(window: &[u16; WINDOW], key: u16) -> u32 {
     use std::arch::x86_64::{
         __m128i, _mm_cmpeq_epi16, _mm_loadu_si128, _mm_movemask_epi8, _mm_packs_epi16,
         _mm_set1_epi16, _mm_setzero_si128, _mm_subs_epu16,
@@ -491,7 +516,7 @@ fn mask_u16_sse2(window: &[u16; NARROW_WINDOW], key: u16) -> u32 {
 /// [`window_at_or_below_u8`] by SSE2, as [`mask_u16_sse2`].
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn mask_u8_sse2(window: &[u8; NARROW_WINDOW], key: u8) -> u32 {
+fn mask_u8_sse2(window: &[u8; WINDOW], key: u8) -> u32 {
     use std::arch::x86_64::{
         __m128i, _mm_cmpeq_epi8, _mm_loadu_si128, _mm_movemask_epi8, _mm_set1_epi8,
         _mm_setzero_si128, _mm_subs_epu8,
@@ -663,14 +688,59 @@ mod tests {
         values
     }
 
-    /// Both searches count `expected`.
+    /// The search counts `expected`, for one key and in a lane of four.
     fn check(data: &[f32], start: usize, len: usize, v: f32, expected: usize) {
         let list = &data[start..start + len];
         let counts = [
-            count_at_or_below(data, start, len, [v])[0],
-            count_short_or_search(data, start, len, v),
+            count_one(data, start, len, v),
+            count_at_or_below(data, start, len, [0.5, v, -1.0, 2.0])[1],
         ];
         assert_eq!(counts, [expected; 2], "list {list:?} v {v}");
+    }
+
+    /// The count of `key` in `data[start..start + len]` equals the
+    /// partition point, for an integer entry type.
+    fn check_integers<K: Key + std::fmt::Debug>(data: &[K], start: usize, len: usize, key: K) {
+        let list = &data[start..start + len];
+        let expected = list.partition_point(|&e| e <= key);
+        assert_eq!(
+            count_one(data, start, len, key),
+            expected,
+            "list {list:?} key {key:?}"
+        );
+    }
+
+    /// The one search counts like a partition point on lists of every
+    /// integer entry type, of every length from empty to past two windows,
+    /// inside buffers shorter and longer than a window, at every key from
+    /// below the first entry to the type's largest value.
+    #[test]
+    fn integer_searches_equal_partition_point() {
+        let mut state = 11u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            state >> 33
+        };
+        for total in [5usize, 31, 32, 40, 100] {
+            let mut v: Vec<u32> = (0..total).map(|_| (next() % 300) as u32).collect();
+            v.sort();
+            let wide: Vec<u32> = v.iter().map(|&e| e * 14_000_000).collect();
+            let w16: Vec<u16> = v.iter().map(|&e| (e * 200) as u16).collect();
+            let w8: Vec<u8> = v.iter().map(|&e| (e * 255 / 299) as u8).collect();
+            for start in [0, 1, total / 2] {
+                for len in 0..=total - start {
+                    for k in [0u32, 1, 77, 150, 299, 300] {
+                        check_integers(&wide, start, len, k * 14_000_000);
+                        check_integers(&wide, start, len, u32::MAX);
+                        check_integers(&w16, start, len, (k * 200).min(65535) as u16);
+                        check_integers(&w16, start, len, u16::MAX);
+                        check_integers(&w8, start, len, (k * 255 / 299).min(255) as u8);
+                    }
+                }
+            }
+        }
     }
 
     /// The probes to compare at: every entry, its neighbours, the ends, NaN.
@@ -796,18 +866,18 @@ mod tests {
     fn narrow_masks_equal_the_portable_masks() {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         for _ in 0..20 {
-            let mut v: Vec<u32> = (0..NARROW_WINDOW)
+            let mut v: Vec<u32> = (0..WINDOW)
                 .map(|_| {
                     state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
                     ((state >> 33) % 65536) as u32
                 })
                 .collect();
             v.sort_unstable();
-            let w16: [u16; NARROW_WINDOW] = std::array::from_fn(|l| v[l] as u16);
-            let w8: [u8; NARROW_WINDOW] = std::array::from_fn(|l| (v[l] >> 8) as u8);
+            let w16: [u16; WINDOW] = std::array::from_fn(|l| v[l] as u16);
+            let w8: [u8; WINDOW] = std::array::from_fn(|l| (v[l] >> 8) as u8);
             let mut keys16: Vec<u16> = vec![0, 1, 0x7fff, 0x8000, 0xfffe, 0xffff];
             let mut keys8: Vec<u8> = vec![0, 1, 0x7f, 0x80, 0xfe, 0xff];
-            for l in 0..NARROW_WINDOW {
+            for l in 0..WINDOW {
                 keys16.extend([w16[l], w16[l].wrapping_sub(1), w16[l].wrapping_add(1)]);
                 keys8.extend([w8[l], w8[l].wrapping_sub(1), w8[l].wrapping_add(1)]);
             }

@@ -21,7 +21,7 @@
 
 use super::cpu::Avx2;
 use super::search::lanes::GROUPS;
-use super::search::narrow::{count_at_or_below, first_step, Pairs};
+use super::search::narrow::{first_step, lift_at_or_below, Pairs};
 use crate::ONE_MINUS_EPSILON;
 use std::arch::x86_64::*;
 
@@ -268,7 +268,7 @@ impl<'a> SharedGrid<'a> {
             for g in 0..GROUPS {
                 from[g] = _mm256_add_epi32(base[g], one);
             }
-            let j = count_at_or_below(
+            let j = lift_at_or_below(
                 cpu,
                 &src.cdf,
                 &from,
@@ -294,7 +294,7 @@ impl<'a> SharedGrid<'a> {
                 key[g] = search_key(us_x[g], u16::MAX);
             }
             // The conditional of each lane's marginal segment.
-            let i = count_at_or_below(
+            let i = lift_at_or_below(
                 cpu,
                 &src.cdf,
                 &from,
@@ -392,7 +392,7 @@ impl<'a> SharedGrid<'a> {
                     u16::MAX,
                 );
             }
-            let j = count_at_or_below(
+            let j = lift_at_or_below(
                 cpu,
                 &src.grid,
                 &[one; GROUPS],
@@ -408,7 +408,7 @@ impl<'a> SharedGrid<'a> {
                 let tx = _mm256_mul_ps(load_f(cpu, g, x), _mm256_set1_ps(n_x));
                 key[g] = search_key(tx, u8::MAX.into());
             }
-            let i = count_at_or_below(
+            let i = lift_at_or_below(
                 cpu,
                 &src.positions,
                 &from,

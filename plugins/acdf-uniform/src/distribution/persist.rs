@@ -3,7 +3,7 @@
 //! table passes before it is used.
 
 use super::{
-    marginal_guide, GridScale, Guide, PiecewiseConstant1D, PiecewiseConstant2D, MAX_CELLS,
+    marginal_guide, CdfGuide, GridScale, PiecewiseConstant1D, PiecewiseConstant2D, MAX_CELLS,
 };
 use acdf_tabulated::persist::{ByteReader, ByteWriter, Persist, PersistError};
 
@@ -53,7 +53,7 @@ impl Persist for PiecewiseConstant1D {
         check_stored_cdf("PiecewiseConstant1D cdf", &cdf)?;
         let integral = check_stored_integral(r.f64("integral")?)?;
         Ok(PiecewiseConstant1D {
-            guide: Guide::new(&cdf),
+            guide: CdfGuide::new(&cdf),
             cdf,
             integral,
         })

@@ -301,7 +301,7 @@ proptest! {
         for u in u.iter().copied().chain(near_guide_boundaries(n)).chain(cdf.iter().copied()) {
             let u = clamp_unit(u);
             let expected = cdf[..n - 1].partition_point(|&c| c <= u);
-            prop_assert_eq!(d.guide.count_at_or_below(cdf, u), expected, "u {}", u);
+            prop_assert_eq!(d.guide.guided_count(cdf, u), expected, "u {}", u);
         }
     }
 

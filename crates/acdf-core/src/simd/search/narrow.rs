@@ -13,7 +13,7 @@
 //! segment a batch lands in is the one a draw at a time finds.
 //!
 //! The reads at indices held in registers stay `unsafe`
-//! ([`Pairs::gather`], [`count_at_or_below`]); [`Pairs`] says up to which index a
+//! ([`Pairs::gather`], [`lift_at_or_below`]); [`Pairs`] says up to which index a
 //! gather may read, and the callers derive their indices from what a
 //! decoder checked (offsets inside their arrays, a CDF ending at its
 //! largest value) and pad their arrays so that the last pair is readable.
@@ -114,7 +114,7 @@ impl<'a, T: Narrow> Pairs<'a, T> {
 /// data.max_index()`: every probe is clamped into `[base, base + last]`,
 /// and the count returned is at most `last`.
 #[inline(always)]
-pub unsafe fn count_at_or_below<T: Narrow>(
+pub unsafe fn lift_at_or_below<T: Narrow>(
     cpu: Avx2,
     data: &Pairs<'_, T>,
     base: &[__m256i; GROUPS],
@@ -151,7 +151,7 @@ pub unsafe fn count_at_or_below<T: Narrow>(
     }
 }
 
-/// The first step of [`count_at_or_below`] for lists of up to `longest`
+/// The first step of [`lift_at_or_below`] for lists of up to `longest`
 /// entries (their `last + 1`): half of `longest` rounded up to a power of
 /// two, 0 for lists of one entry.
 #[inline(always)]
@@ -201,7 +201,7 @@ mod tests {
         // SAFETY: every list has at least two entries and the padding
         // keeps its last pair readable.
         let count = unsafe {
-            count_at_or_below(
+            lift_at_or_below(
                 cpu,
                 &pairs,
                 &registers(cpu, &base),
@@ -279,7 +279,7 @@ mod tests {
         // SAFETY: the list is data[1..=2], so base + last = 2 is below
         // max_index = 3.
         let count = unsafe {
-            count_at_or_below(
+            lift_at_or_below(
                 cpu,
                 &pairs,
                 &[_mm256_set1_epi32(1); GROUPS],
