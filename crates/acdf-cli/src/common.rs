@@ -68,7 +68,7 @@ pub struct ProductArgs {
     /// map's frame (as `acdf env-sample --normal`). `--wo` and the
     /// directions drawn are in the normal's local frame: z the normal, x =
     /// (1 + σ n_x² a, σ n_x n_y a, −σ n_x) and y = (n_x n_y a, σ + n_y² a,
-    /// −n_y) in the map's frame, σ = sign(n_z) (+1 at n_z = 0), a = −1 /
+    /// −n_y) in the map's frame, σ = ±1 the sign of n_z (its sign bit at 0), a = −1 /
     /// (σ + n_z), the two swapped when that frame is left-handed
     /// (`acdf_core::Frame::from_z`, the frame `acdf render` shades in); at
     /// the normal 0,0 the local axes are the map's.
@@ -88,7 +88,7 @@ pub struct ProductArgs {
 
 impl ProductArgs {
     /// The product's setting when `--envmap` is given (the map read and
-    /// filtered); a typed error for one of `--envmap` and `--normal`
+    /// cut into blocks); a typed error for one of `--envmap` and `--normal`
     /// without the other, a bad normal or bad options.
     pub fn setting(&self) -> Result<Option<ProductSetting>> {
         let (path, normal) = match (&self.envmap, &self.normal) {

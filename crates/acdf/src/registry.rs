@@ -303,7 +303,7 @@ pub struct SamplerFamily {
     /// with its first simplifier).
     pub in_render: bool,
     /// Whether it samples BRDF × environment at one shading point: it is
-    /// built by [`make_product_sampler`] from a map and a normal (its
+    /// built by [`make_sampler_in`] from a map and a normal (its
     /// `build` refuses with [`Error::NeedsEnvironment`]) and named
     /// `NAME[:BRDF_SAMPLER]`, the BRDF sampler it wraps.
     pub environment: bool,
