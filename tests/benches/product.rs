@@ -5,7 +5,8 @@
 //! draw of the BRDF sampler it wraps (`outgoing:chi2`) and of the
 //! orientation-aware light sampler (`oriented:chi2`). nickel under
 //! rooitou_park (the shared data; a synthetic 1024 × 512 sky with a sun
-//! without it), 64 × 32 blocks, 2 × 2 points per block, δ = 0.15. The
+//! without it), 64 × 32 blocks (forming the product also at 32 × 16 and
+//! 128 × 64), 2 × 2 points per block, δ = 0.15. The
 //! heap bytes of the blocks, of one normal's points and of one formed
 //! product are printed first.
 //!
@@ -108,6 +109,24 @@ fn bench(c: &mut Criterion) {
             BatchSize::SmallInput,
         )
     });
+    for columns in [32, 128] {
+        let other = ProductEnv::new(map.clone(), columns, options.points_per_side).unwrap();
+        let other_points = other.local_points(&frame);
+        let name = format!("query_product_only_{columns}x{}_blocks", columns / 2);
+        g.bench_function(&name, |b| {
+            b.iter_batched(
+                || {
+                    k = (k + 1) % cases.len();
+                    cases[k].1
+                },
+                |wo| {
+                    let (env, points) = (&other, &other_points);
+                    ProductQuery::build(env, frame, points, &outgoing, wo, options.defensive)
+                },
+                BatchSize::SmallInput,
+            )
+        });
+    }
     let us: Vec<Vec2> = (0..1024)
         .map(|i| {
             Vec2::new(

@@ -10,8 +10,10 @@
 //! (60°, 120°) and (100°, 300°), wo at θ_o = 30° and 75°.
 //!
 //! ```text
-//! cargo run --release -p acdf-conformance --example product_variance
+//! cargo run --release -p acdf-conformance --example product_variance [BLOCK_COLUMNS]
 //! ```
+//!
+//! (BLOCK_COLUMNS: the product's block columns, 64 by default.)
 //!
 //! Per case one line: the relative variances, and the product's at each δ
 //! divided by the best of the three others. Then per map the median and
@@ -74,6 +76,9 @@ fn direction(theta_deg: f32, phi_deg: f32) -> Vec3 {
 }
 
 fn main() {
+    let block_columns: usize = std::env::args()
+        .nth(1)
+        .map_or(64, |a| a.parse().expect("BLOCK_COLUMNS is a count"));
     let data = acdf_materials::shared_data_dir().expect("the shared data (ACDF_SHARED_DATA)");
     let mut materials: Vec<(String, Arc<dyn Brdf>)> =
         ["nickel", "gray-plastic", "blue-metallic-paint", "lambert"]
@@ -112,7 +117,7 @@ fn main() {
         "studio_small_03",
     ] {
         let map = Arc::new(EnvMap::open(&data.join(format!("envmaps/{stem}_1k.hdr"))).unwrap());
-        let env = Arc::new(ProductEnv::new(map.clone(), 64, 2).unwrap());
+        let env = Arc::new(ProductEnv::new(map.clone(), block_columns, 2).unwrap());
         let light = oriented_env_sampler(
             map.clone(),
             AdaptiveBuilder::by_name("chi2", None).unwrap(),
