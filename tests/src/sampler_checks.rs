@@ -692,7 +692,12 @@ fn report_impossible_cells(fit: &FitCase<'_>, outcome: &ChiSquareOutcome, report
 /// (`integral`) resolves such a spike but can miss structure aligned with
 /// its nodes. A correct pdf agrees with the successful fraction under at
 /// least one of them; a wrong one (a scale, a missing Jacobian, a shifted
-/// table) moves both, so the check fails only when neither agrees.
+/// table) moves both, so the check fails only when neither agrees. The
+/// same holds for the bound ∫ pdf ≤ 1: a spike narrower than the strata
+/// that one point more or less hits (a sun texel of a 1k map under the
+/// product sampler) makes the Monte Carlo estimate heavy-tailed and its
+/// standard error an underestimate in the other direction, so an excess
+/// fails only when the quadrature sees it too (a note otherwise).
 fn check_integral_of_pdf(
     fit: &FitCase<'_>,
     failed: usize,
@@ -706,11 +711,18 @@ fn check_integral_of_pdf(
     let (mc, se_mc) = stratified_integral(fit.sampler, fit.wo, n, rng);
     let se = (se_success * se_success + se_mc * se_mc).sqrt();
     if mc > 1.0 + 1e-3 + 3.0 * se_mc {
-        report.fail(
-            Check::Integral,
-            case,
-            format!("∫ pdf = {mc:.6} ± {se_mc:.1e} > 1 + 1e-3"),
-        );
+        if integral > 1.0 + 1e-3 + QUADRATURE_SLACK {
+            report.fail(
+                Check::Integral,
+                case,
+                format!("∫ pdf = {mc:.6} ± {se_mc:.1e} (quadrature {integral:.6}) > 1 + 1e-3"),
+            );
+        } else {
+            report.notes.push(format!(
+                "{case}: Monte Carlo ∫ pdf = {mc:.6} ± {se_mc:.1e} > 1 + 1e-3, \
+                 quadrature {integral:.6}: only the Monte Carlo estimate exceeds 1"
+            ));
+        }
     }
     let mc_agrees = (mc - success).abs() <= 3.0 * se;
     let quadrature_agrees = (integral - success).abs() <= 3.0 * se_success + QUADRATURE_SLACK;

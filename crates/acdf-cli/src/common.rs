@@ -6,10 +6,11 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use acdf::core::HemisphereGrid;
+use acdf::env_registry::parse_sphere_direction_degrees;
 use acdf::error::{Error, Result};
 use acdf::material::{load_material, Material};
 use acdf::registry::{
-    load_sampler_for, make_sampler_spec, sampler_help, sampler_long_help, AnySampler,
+    load_sampler_for, make_sampler_in, sampler_help, sampler_long_help, AnySampler, ProductSetting,
     SamplerOptions,
 };
 use acdf::spec::{parse_direction_line, MaterialSpec, SamplerAt, SamplerSpec, DIRECTION_FIELDS};
@@ -49,6 +50,68 @@ pub struct SamplerArgs {
     pub sampler_file: Option<PathBuf>,
     #[command(flatten)]
     pub tables: TableArgs,
+    #[command(flatten)]
+    pub product: ProductArgs,
+}
+
+/// The environment of the `product` sampler, which draws wi in proportion
+/// to the BRDF sampler's density times the map's luminance at one shading
+/// point.
+#[derive(Args, Debug, Clone)]
+pub struct ProductArgs {
+    /// The environment map of `--sampler product[:BRDF_SAMPLER]`: a
+    /// lat-long `.hdr` or `.exr` (+z up, row 0 at the zenith, φ = 0 along
+    /// +x at the left edge, as `acdf env-sample --env`).
+    #[arg(long, value_name = "FILE")]
+    pub envmap: Option<PathBuf>,
+    /// The shading normal of `--sampler product`, THETA_DEG,PHI_DEG in the
+    /// map's frame (as `acdf env-sample --normal`). `--wo` and the
+    /// directions drawn are in the normal's local frame: z the normal, x =
+    /// (1 + σ n_x² a, σ n_x n_y a, −σ n_x) and y = (n_x n_y a, σ + n_y² a,
+    /// −n_y) in the map's frame, σ = ±1 the sign of n_z (its sign bit at 0), a = −1 /
+    /// (σ + n_z), the two swapped when that frame is left-handed
+    /// (`acdf_core::Frame::from_z`, the frame `acdf render` shades in); at
+    /// the normal 0,0 the local axes are the map's.
+    #[arg(long, value_name = "T,P", allow_hyphen_values = true)]
+    pub normal: Option<String>,
+    /// The product sampler's defensive share δ in [0, 1]: the probability
+    /// of drawing from the BRDF sampler itself, which keeps the density
+    /// positive wherever the BRDF sampler's is.
+    #[arg(long, value_name = "D", default_value_t = acdf::product::ProductOptions::default().defensive)]
+    pub product_defensive: f32,
+    /// The product sampler's blocks: the map is cut into N × N/2 blocks of
+    /// texels (at most its own size), each weighed per query by the BRDF
+    /// sampler's density at 2 × 2 points.
+    #[arg(long, value_name = "N", default_value_t = acdf::product::ProductOptions::default().block_columns)]
+    pub product_blocks: usize,
+}
+
+impl ProductArgs {
+    /// The product's setting when `--envmap` is given (the map read and
+    /// cut into blocks); a typed error for one of `--envmap` and `--normal`
+    /// without the other, a bad normal or bad options.
+    pub fn setting(&self) -> Result<Option<ProductSetting>> {
+        let (path, normal) = match (&self.envmap, &self.normal) {
+            (None, None) => return Ok(None),
+            (Some(path), Some(normal)) => (path, normal),
+            (Some(_), None) | (None, Some(_)) => {
+                return Err(Error::InvalidArgument {
+                    what: "--envmap and --normal",
+                    value: format!("{:?}, {:?}", self.envmap, self.normal),
+                    reason: "the product sampler needs both".into(),
+                })
+            }
+        };
+        let normal = parse_sphere_direction_degrees(normal)?;
+        let options = acdf::product::ProductOptions {
+            defensive: self.product_defensive,
+            block_columns: self.product_blocks,
+            ..Default::default()
+        };
+        options.validate()?;
+        let map = acdf::env_registry::load_env_map(path)?;
+        Ok(Some(ProductSetting::new(map, normal, options)?))
+    }
 }
 
 #[derive(Args, Debug, Clone)]
@@ -273,8 +336,28 @@ pub fn material(args: &MaterialArgs) -> Result<Material> {
 pub fn sampler(args: &SamplerArgs, material: &Material) -> Result<AnySampler> {
     let Some(path) = &args.sampler_file else {
         let spec: SamplerSpec = args.sampler.parse()?;
-        return make_sampler_spec(spec, material, &args.tables.options()?);
+        let options = args.tables.options()?;
+        let setting = match spec.base() {
+            // Checked before the map is read.
+            Some(_) if args.product.envmap.is_none() || args.product.normal.is_none() => {
+                return Err(Error::NeedsEnvironment {
+                    sampler: spec.to_string(),
+                    context: "and was not given both".into(),
+                })
+            }
+            _ => args.product.setting()?,
+        };
+        return make_sampler_in(spec, material, &options, setting.as_ref());
     };
+    if args.product.envmap.is_some() {
+        return Err(Error::InvalidArgument {
+            what: "--envmap",
+            value: path.display().to_string(),
+            reason: "a sampler file is not a product sampler: the product is formed from \
+                     --sampler product[:BRDF_SAMPLER]"
+                .into(),
+        });
+    }
     let t = &args.tables;
     for (given, option) in [
         (t.tolerance.is_some(), "--tolerance"),

@@ -79,11 +79,29 @@ fn every_table_name_is_in_the_help_of_every_subcommand_that_takes_a_sampler() {
     }
 }
 
+/// A 16 × 8 sky with one bright texel, for the families that sample BRDF
+/// × environment.
+fn small_map(dir: &std::path::Path) -> std::path::PathBuf {
+    let path = dir.join("sky.hdr");
+    let img = image::Rgb32FImage::from_fn(16, 8, |x, y| {
+        image::Rgb(if (x, y) == (3, 2) {
+            [500.0; 3]
+        } else {
+            [0.5; 3]
+        })
+    });
+    image::DynamicImage::ImageRgb32F(img).save(&path).unwrap();
+    path
+}
+
 #[test]
 fn every_table_name_builds_a_sampler_from_the_command_line() {
     let material = acdf::load_material(&"builtin:nickel".parse().unwrap(), None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let map = small_map(dir.path());
+    let map = map.to_str().unwrap();
     for (name, family) in names_from_tables() {
-        let o = acdf(&[
+        let mut args = vec![
             "sample",
             "--material",
             "builtin:nickel",
@@ -95,7 +113,17 @@ fn every_table_name_builds_a_sampler_from_the_command_line() {
             "30,0",
             "--n",
             "20",
-        ]);
+        ];
+        if family.environment {
+            // Without them it is refused, naming both.
+            let err = text(&acdf(&args).stderr);
+            assert!(
+                err.contains("--envmap") && err.contains("--normal"),
+                "{name}: {err}"
+            );
+            args.extend(["--envmap", map, "--normal", "40,30"]);
+        }
+        let o = acdf(&args);
         let usable = family.requires.as_ref().is_none_or(|r| (r.met)(&material));
         if usable {
             assert!(o.status.success(), "{name}: {}", text(&o.stderr));

@@ -67,7 +67,9 @@ pub fn to_py(py: Python<'_>, e: Error) -> PyErr {
     let name = match &e {
         Error::UnknownMaterial { .. } | Error::UnknownSampler { .. } => "UnknownNameError",
         Error::Material { .. } => "MaterialError",
-        Error::Incompatible { .. } | Error::NotSaveable { .. } => "IncompatibleError",
+        Error::Incompatible { .. } | Error::NotSaveable { .. } | Error::NeedsEnvironment { .. } => {
+            "IncompatibleError"
+        }
         Error::InvalidArgument { .. } | Error::Input { .. } | Error::Core(_) => {
             "InvalidArgumentError"
         }

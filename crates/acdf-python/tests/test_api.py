@@ -67,11 +67,15 @@ def test_every_builtin_material_loads() -> None:
 def test_every_sampler_samples_with_its_own_pdf(nickel: acdf.Material, name: str) -> None:
     # A family with a requirement the built-in material does not meet
     # (`rgl` needs a .bsdf file) says so; test_rgl_material_and_sampler
-    # covers `rgl` on its material.
+    # covers `rgl` on its material. `product` samples BRDF × environment
+    # and needs a map and a normal, which the Python API does not take yet.
     try:
         s = acdf.Sampler(nickel, name, resolution=SMALL)
     except acdf.IncompatibleError as e:
-        assert f"sampler `{name}` cannot be used with material `builtin:nickel`" in str(e)
+        if name == "product":
+            assert "needs --envmap FILE and --normal" in str(e)
+        else:
+            assert f"sampler `{name}` cannot be used with material `builtin:nickel`" in str(e)
         return
     assert s.name.startswith(name)
     assert (s.storage_bytes == 0) == (name == "cosine")

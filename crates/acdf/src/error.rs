@@ -38,6 +38,12 @@ pub enum Error {
         reason: String,
     },
 
+    /// A sampler of BRDF × environment (`product`) asked for without the
+    /// environment map and shading normal it is formed for, or by a
+    /// command that has neither.
+    #[error("sampler `{sampler}` samples BRDF × environment at one shading point: it needs --envmap FILE and --normal THETA_DEG,PHI_DEG (`acdf sample` and `acdf pdf`), {context}")]
+    NeedsEnvironment { sampler: String, context: String },
+
     /// A sampler without tables asked to be saved to a file.
     #[error("sampler `{sampler}` has no tables to save: only tabulated samplers ({kinds}) are saved to files")]
     NotSaveable { sampler: String, kinds: String },

@@ -56,6 +56,7 @@ pub use acdf_cosine as cosine;
 pub use acdf_io as io;
 pub use acdf_lights as lights;
 pub use acdf_materials as materials;
+pub use acdf_product as product;
 pub use acdf_tabulated as tabulated;
 pub use acdf_uniform as uniform;
 

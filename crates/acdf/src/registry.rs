@@ -29,6 +29,7 @@ use acdf_lobes::LobesSampler;
 use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_outgoing::FINE_PER_CELL;
 use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
+use acdf_product::{ProductEnv, ProductOptions, ProductSampler};
 use acdf_rgl::RglSampler;
 use acdf_tabulated::persist::{self, PersistError};
 use acdf_tabulated::{tabulate_slice, Resolution, SliceBuilder, TabulatedBrdfSampler};
@@ -124,6 +125,14 @@ impl SamplerOps for LobesSampler {
     }
     fn write_file(&self, path: &Path) -> Option<std::result::Result<(), PersistError>> {
         Some(self.save(path))
+    }
+}
+
+impl SamplerOps for ProductSampler {
+    /// The map's blocks.
+    fn resolution_label(&self) -> String {
+        let (c, r) = self.env().blocks();
+        format!("{c}x{r} blocks")
     }
 }
 
@@ -283,6 +292,9 @@ any_sampler! {
     /// `outgoing:SIMPLIFIER` for an anisotropic material: θ_o × φ_o
     /// breakpoints, four blended slices.
     OutgoingAnisotropic(AnisotropicOutgoingSampler),
+    /// `product:BRDF_SAMPLER`: a BRDF sampler's density times an
+    /// environment map's luminance at one shading normal.
+    Product(ProductSampler),
 }
 
 impl std::fmt::Debug for AnySampler {
@@ -308,6 +320,11 @@ pub struct SamplerFamily {
     /// Whether `acdf render` compares it by default (in the table's order;
     /// with its first simplifier).
     pub in_render: bool,
+    /// Whether it samples BRDF × environment at one shading point: it is
+    /// built by [`make_sampler_in`] from a map and a normal (its
+    /// `build` refuses with [`Error::NeedsEnvironment`]) and named
+    /// `NAME[:BRDF_SAMPLER]`, the BRDF sampler it wraps.
+    pub environment: bool,
     /// Whether it can be used with a material (`None`: with every one), and
     /// why not.
     pub requires: Option<Requirement>,
@@ -350,6 +367,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: false,
         report_rank: Some(2),
         in_render: true,
+        environment: false,
         requires: None,
         file_kind: None,
         build: |_, _, _| Ok(CosineSampler.into()),
@@ -361,6 +379,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: false,
         report_rank: Some(0),
         in_render: true,
+        environment: false,
         requires: None,
         file_kind: Some("uniform"),
         build: |_, m, o| {
@@ -376,6 +395,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: true,
         report_rank: Some(1),
         in_render: true,
+        environment: false,
         requires: None,
         file_kind: Some("adaptive"),
         build: |spec, m, o| {
@@ -396,6 +416,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: true,
         report_rank: None,
         in_render: false,
+        environment: false,
         requires: None,
         file_kind: Some(acdf_outgoing::persist::KIND),
         build: |spec, m, o| {
@@ -432,6 +453,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: false,
         report_rank: Some(3),
         in_render: true,
+        environment: false,
         requires: Some(Requirement {
             met: |m| m.rgl.is_some(),
             reason: "the rgl sampler needs an RGL .bsdf material",
@@ -450,12 +472,106 @@ pub static SAMPLERS: &[SamplerFamily] = &[
         simplifiers: false,
         report_rank: Some(4),
         in_render: false,
+        environment: false,
         requires: None,
         file_kind: Some(acdf_lobes::persist::KIND),
         build: |_, m, _| Ok(LobesSampler::new(m.brdf.as_ref())?.into()),
         load: Some(|bytes| Ok(LobesSampler::from_bytes(bytes)?.into())),
     },
+    SamplerFamily {
+        name: PRODUCT,
+        description: "BRDF × environment at one shading normal: blocks of the map weighed by \
+                      a BRDF sampler's density, texels by their light, with a defensive share \
+                      of the BRDF sampler; needs --envmap and --normal, product:BRDF_SAMPLER \
+                      (alone, product:outgoing:chi2)",
+        simplifiers: false,
+        report_rank: None,
+        in_render: false,
+        environment: true,
+        requires: None,
+        file_kind: None,
+        build: |spec, _, _| {
+            Err(Error::NeedsEnvironment {
+                sampler: spec.to_string(),
+                context: "which this command does not take".into(),
+            })
+        },
+        load: None,
+    },
 ];
+
+/// The name of the family that samples BRDF × environment
+/// ([`ProductSampler`]).
+pub const PRODUCT: &str = "product";
+
+/// The environment a product sampler is formed for: the map's blocks
+/// (built once per map), the shading normal in the map's frame, and the
+/// product's options.
+#[derive(Debug, Clone)]
+pub struct ProductSetting {
+    /// The map cut into blocks.
+    pub env: Arc<ProductEnv>,
+    /// The shading normal, in the map's frame.
+    pub normal: Vec3,
+    /// Grid, points per cell, defensive share.
+    pub options: ProductOptions,
+}
+
+impl ProductSetting {
+    /// Cut `map` into the blocks of `options`, for the product at `normal`.
+    pub fn new(
+        map: Arc<acdf_lights::EnvMap>,
+        normal: Vec3,
+        options: ProductOptions,
+    ) -> Result<Self> {
+        options.validate()?;
+        Ok(ProductSetting {
+            env: Arc::new(ProductEnv::new(
+                map,
+                options.block_columns,
+                options.points_per_side,
+            )?),
+            normal,
+            options,
+        })
+    }
+}
+
+/// Build the sampler `spec` names for `material`: for a family that samples
+/// BRDF × environment, its BRDF sampler built as [`make_sampler_spec`]
+/// builds it and wrapped with `setting` (a typed error without one); for
+/// any other family, [`make_sampler_spec`] (a typed error with one, which
+/// it would ignore).
+pub fn make_sampler_in(
+    spec: SamplerSpec,
+    material: &Material,
+    options: &SamplerOptions,
+    setting: Option<&ProductSetting>,
+) -> Result<AnySampler> {
+    match (spec.base(), setting) {
+        (Some(base), Some(setting)) => {
+            let brdf = make_sampler_spec(base, material, options)?;
+            brdf.build_all()?;
+            Ok(ProductSampler::new(
+                Arc::new(brdf),
+                setting.env.clone(),
+                setting.normal,
+                setting.options,
+            )?
+            .into())
+        }
+        (Some(_), None) => Err(Error::NeedsEnvironment {
+            sampler: spec.to_string(),
+            context: "and was given neither".into(),
+        }),
+        (None, Some(_)) => Err(Error::InvalidArgument {
+            what: "--envmap and --normal",
+            value: spec.to_string(),
+            reason: format!("only the {PRODUCT} sampler takes an environment map and a normal"),
+        }),
+        (None, None) => make_sampler_spec(spec, material, options),
+    }
+}
 
 /// The family called `name`.
 pub fn family(name: &str) -> Option<&'static SamplerFamily> {
@@ -784,7 +900,7 @@ pub fn render_samplers(material: &Material) -> Vec<SamplerSpec> {
 pub fn plain_samplers(material: &Material) -> Vec<SamplerSpec> {
     SAMPLERS
         .iter()
-        .filter(|f| !f.simplifiers && usable(f, material))
+        .filter(|f| !f.simplifiers && !f.environment && usable(f, material))
         .map(SamplerSpec::of_family)
         .collect()
 }
@@ -917,7 +1033,7 @@ mod tests {
         let options = SamplerOptions::default();
         for name in sampler_names()
             .into_iter()
-            .filter(|n| n != "rgl" && n != ADAPTIVE && n != OUTGOING)
+            .filter(|n| n != "rgl" && n != ADAPTIVE && n != OUTGOING && n != PRODUCT)
         {
             let s = make_sampler(&name, &m, &options).unwrap();
             assert_eq!(s.name(), name);
@@ -944,6 +1060,50 @@ mod tests {
                 unknown.to_string().contains(&name),
                 "{unknown} lacks {name}"
             );
+        }
+    }
+
+    /// `product` is built only with an environment, wraps the BRDF sampler
+    /// it names, draws with the density it reports, and stays out of the
+    /// default sets and the plain samplers; other samplers refuse an
+    /// environment.
+    #[test]
+    fn product_samplers_need_an_environment() {
+        let m = nickel();
+        let options = SamplerOptions {
+            resolution: "8x1x32x8".parse().unwrap(),
+            ..SamplerOptions::default()
+        };
+        let map = acdf_lights::EnvMap::from_fn(32, 16, |k, j| {
+            acdf_core::Rgb::splat(if (k, j) == (3, 4) { 500.0 } else { 0.2 })
+        })
+        .unwrap();
+        let setting = ProductSetting::new(
+            Arc::new(map),
+            Vec3::new(0.2, 0.3, 0.9),
+            ProductOptions::default(),
+        )
+        .unwrap();
+        let spec: SamplerSpec = "product:adaptive:chi2".parse().unwrap();
+        assert!(matches!(
+            make_sampler_in(spec, &m, &options, None),
+            Err(Error::NeedsEnvironment { .. })
+        ));
+        assert!(matches!(
+            make_sampler("product", &m, &options),
+            Err(Error::NeedsEnvironment { .. })
+        ));
+        assert!(matches!(
+            make_sampler_in(SamplerSpec::COSINE, &m, &options, Some(&setting)),
+            Err(Error::InvalidArgument { .. })
+        ));
+        let s = make_sampler_in(spec, &m, &options, Some(&setting)).unwrap();
+        assert_eq!(s.name(), "product:adaptive:chi2");
+        let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
+        let d = s.sample(wo, Vec2::new(0.3, 0.6)).unwrap();
+        assert_eq!(s.pdf(wo, d.wi), d.pdf);
+        for f in [report_samplers(&m), render_samplers(&m), plain_samplers(&m)] {
+            assert!(f.iter().all(|s| s.family().name != PRODUCT));
         }
     }
 

@@ -16,7 +16,7 @@ use acdf_adaptive_cdf::simplify::{
 use acdf_tabulated::Resolution;
 
 use crate::error::Error;
-use crate::registry::{family, sampler_names, SamplerFamily, ADAPTIVE};
+use crate::registry::{family, sampler_names, SamplerFamily, ADAPTIVE, OUTGOING};
 
 /// The names of the analytic built-in materials.
 pub const BUILTIN_MATERIALS: [&str; 5] = [
@@ -164,12 +164,17 @@ impl fmt::Display for SimplifierName {
 }
 
 /// A sampler as named on the command line: a family of the registry's table
-/// ([`SAMPLERS`](crate::registry::SAMPLERS)) and, for the adaptive family,
-/// its simplifier. Parsing and display derive from the two tables.
+/// ([`SAMPLERS`](crate::registry::SAMPLERS)) and, for a family with
+/// simplifiers, its simplifier; for a family that samples BRDF ×
+/// environment (`environment` in the table), the BRDF sampler it wraps,
+/// `FAMILY:BRDF_SAMPLER`. Parsing and display derive from the two tables.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct SamplerSpec {
     family: &'static str,
     simplifier: Option<SimplifierName>,
+    /// The wrapped BRDF sampler's family and simplifier (environment
+    /// families only).
+    base: Option<(&'static str, Option<SimplifierName>)>,
 }
 
 impl SamplerSpec {
@@ -182,6 +187,7 @@ impl SamplerSpec {
         SamplerSpec {
             family,
             simplifier: None,
+            base: None,
         }
     }
 
@@ -190,6 +196,7 @@ impl SamplerSpec {
         SamplerSpec {
             family: ADAPTIVE,
             simplifier: Some(simplifier),
+            base: None,
         }
     }
 
@@ -199,7 +206,32 @@ impl SamplerSpec {
         SamplerSpec {
             family: family.name,
             simplifier: family.simplifiers.then(SimplifierName::default_simplifier),
+            base: family.environment.then(|| {
+                let base = SamplerSpec::default_product_base();
+                (base.family, base.simplifier)
+            }),
         }
+    }
+
+    /// The BRDF sampler a product sampler wraps when none is named:
+    /// `outgoing:chi2` (its tables build in a fraction of a second for an
+    /// analytic material and its batch densities are the fastest).
+    pub fn default_product_base() -> SamplerSpec {
+        SamplerSpec {
+            family: OUTGOING,
+            simplifier: SimplifierName::find("chi2"),
+            base: None,
+        }
+    }
+
+    /// The BRDF sampler wrapped by a family that samples BRDF ×
+    /// environment; `None` for the other families.
+    pub fn base(&self) -> Option<SamplerSpec> {
+        self.base.map(|(family, simplifier)| SamplerSpec {
+            family,
+            simplifier,
+            base: None,
+        })
     }
 
     /// The sampler family's entry in the registry table.
@@ -218,13 +250,40 @@ impl FromStr for SamplerSpec {
 
     /// A family's name, or for a family with simplifiers `FAMILY` (its first
     /// simplifier) or `FAMILY:SIMPLIFIER`.
+    ///
+    /// A family that samples BRDF × environment takes `FAMILY` (with
+    /// [`default_product_base`](Self::default_product_base)) or
+    /// `FAMILY:BRDF_SAMPLER`, any other family's name.
     fn from_str(s: &str) -> Result<Self, Error> {
+        let (head, tail) = s.split_once(':').unwrap_or((s, ""));
+        if let Some(f) = family(head).filter(|f| f.environment) {
+            let base = if s.contains(':') {
+                tail.parse::<SamplerSpec>()
+                    .ok()
+                    .filter(|b| !b.family().environment)
+                    .ok_or_else(|| Error::UnknownSampler {
+                        name: s.to_string(),
+                        known: sampler_names().join(", "),
+                    })?
+            } else {
+                SamplerSpec::default_product_base()
+            };
+            return Ok(SamplerSpec {
+                family: f.name,
+                simplifier: None,
+                base: Some((base.family, base.simplifier)),
+            });
+        }
         let (family, simplifier) = parse_family_name(
             s,
             |head| family(head).map(|f| (f.name, f.simplifiers)),
             sampler_names,
         )?;
-        Ok(SamplerSpec { family, simplifier })
+        Ok(SamplerSpec {
+            family,
+            simplifier,
+            base: None,
+        })
     }
 }
 
@@ -257,6 +316,9 @@ pub(crate) fn parse_family_name(
 
 impl fmt::Display for SamplerSpec {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(base) = self.base() {
+            return write!(f, "{}:{base}", self.family);
+        }
         match self.simplifier {
             Some(s) => write!(f, "{}:{s}", self.family),
             None => f.write_str(self.family),
@@ -493,8 +555,9 @@ mod tests {
     fn sampler_names_round_trip() {
         for name in sampler_names() {
             let spec: SamplerSpec = name.parse().unwrap();
-            // `adaptive` alone prints as the simplifier it stands for.
-            if spec.family().simplifiers && !name.contains(':') {
+            // `adaptive` alone prints as the simplifier it stands for,
+            // `product` alone as the BRDF sampler it wraps.
+            if (spec.family().simplifiers || spec.family().environment) && !name.contains(':') {
                 continue;
             }
             assert_eq!(spec.to_string(), name);
@@ -503,7 +566,26 @@ mod tests {
             "adaptive".parse::<SamplerSpec>().unwrap(),
             SamplerSpec::adaptive(SimplifierName::find("dp").unwrap())
         );
-        for bad in ["adaptive:xx", "uniform:dp", "", "adaptive:"] {
+        let product: SamplerSpec = "product:adaptive:vw".parse().unwrap();
+        assert_eq!(product.to_string(), "product:adaptive:vw");
+        assert_eq!(product.base().unwrap().to_string(), "adaptive:vw");
+        assert_eq!(
+            "product".parse::<SamplerSpec>().unwrap().to_string(),
+            "product:outgoing:chi2"
+        );
+        assert_eq!(
+            "product:cosine".parse::<SamplerSpec>().unwrap().base(),
+            Some(SamplerSpec::COSINE)
+        );
+        for bad in [
+            "adaptive:xx",
+            "uniform:dp",
+            "",
+            "adaptive:",
+            "product:",
+            "product:product",
+            "product:bogus",
+        ] {
             assert!(matches!(
                 bad.parse::<SamplerSpec>(),
                 Err(Error::UnknownSampler { .. })

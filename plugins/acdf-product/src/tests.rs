@@ -1,0 +1,161 @@
+use super::*;
+use acdf_core::warp::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
+use acdf_core::Rgb;
+use acdf_lights::EnvMap;
+use rand::{Rng, SeedableRng};
+
+/// p = cos θ_i / π, the simplest BRDF sampler (plug-ins do not depend on
+/// each other, so not `acdf-cosine`'s).
+struct CosineSampler;
+
+impl BxdfSampler for CosineSampler {
+    fn name(&self) -> &str {
+        "cosine"
+    }
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        let wi = square_to_cosine_hemisphere(u);
+        let pdf = cosine_hemisphere_pdf(wi);
+        (is_valid_outgoing(wo) && pdf > 0.0).then_some(BxdfSample { wi, pdf })
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if is_valid_outgoing(wo) {
+            cosine_hemisphere_pdf(wi)
+        } else {
+            0.0
+        }
+    }
+    fn storage_bytes(&self) -> usize {
+        0
+    }
+}
+
+fn sun_map() -> EnvMap {
+    EnvMap::from_fn(64, 32, |k, j| {
+        if (k, j) == (8, 6) {
+            Rgb::splat(5000.0)
+        } else {
+            Rgb::splat(0.1)
+        }
+    })
+    .unwrap()
+}
+
+fn sampler(map: &EnvMap, normal: Vec3, defensive: f32) -> ProductSampler {
+    let options = ProductOptions {
+        defensive,
+        ..ProductOptions::default()
+    };
+    let env = ProductEnv::new(Arc::new(map.clone()), options.block_columns, 2).unwrap();
+    ProductSampler::new(Arc::new(CosineSampler), Arc::new(env), normal, options).unwrap()
+}
+
+/// Draws carry the density `pdf` gives, above the horizon, and follow
+/// the map: with a sun, most draws go towards it.
+#[test]
+fn draws_agree_with_the_density_and_follow_the_light() {
+    let map = sun_map();
+    let s = sampler(&map, Vec3::Z, 0.15);
+    let sun = map.direction_of(map.grid().texel_centre(8, 6));
+    let wo = Vec3::new(0.2, 0.1, 0.9).normalize();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+    let mut near = 0;
+    let n = 20_000;
+    for _ in 0..n {
+        let u = Vec2::new(rng.random(), rng.random());
+        let d = s.sample(wo, u).unwrap();
+        assert!(d.wi.z > 0.0 && (d.wi.length() - 1.0).abs() < 1e-5);
+        assert_eq!(d.pdf, s.pdf(wo, d.wi));
+        if d.wi.dot(sun) > 0.99 {
+            near += 1;
+        }
+    }
+    assert!(near as f64 > 0.5 * n as f64, "{near} of {n} near the sun");
+    assert_eq!(s.name(), "product:cosine");
+}
+
+/// The density integrates (midpoint rule on a fine (cos θ, φ) grid, a
+/// smooth map) to the share of draws that succeed: the blocks straddle
+/// the horizon, and draws of theirs below it are `None`.
+#[test]
+fn the_density_integrates_to_the_share_of_draws() {
+    let map = EnvMap::from_fn(64, 32, |k, j| {
+        Rgb::splat(1.0 + 0.1 * j as f32 + 0.05 * k as f32)
+    })
+    .unwrap();
+    for (normal, delta) in [
+        (Vec3::Z, 0.15),
+        (-Vec3::Z, 0.0),
+        (Vec3::new(1.0, -0.0, 0.2), 1.0),
+    ] {
+        let s = sampler(&map, normal, delta);
+        let wo = Vec3::new(0.5, -0.2, 0.6).normalize();
+        let (nz, nphi) = (400, 800);
+        let mut sum = 0f64;
+        for i in 0..nz {
+            for j in 0..nphi {
+                let z = (i as f32 + 0.5) / nz as f32;
+                let phi = std::f32::consts::TAU * (j as f32 + 0.5) / nphi as f32;
+                let r = (1.0 - z * z).sqrt();
+                sum += s.pdf(wo, Vec3::new(r * phi.cos(), r * phi.sin(), z)) as f64;
+            }
+        }
+        let integral = sum * std::f64::consts::TAU / (nz * nphi) as f64;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let n = 100_000;
+        let drawn = (0..n)
+            .filter(|_| {
+                s.sample(wo, Vec2::new(rng.random(), rng.random()))
+                    .is_some()
+            })
+            .count() as f64
+            / n as f64;
+        assert!(integral <= 1.0 + 2e-3, "{normal} {delta}: {integral}");
+        assert!(
+            (integral - drawn).abs() < 5e-3,
+            "{normal} {delta}: {integral} against {drawn}"
+        );
+    }
+}
+
+/// A black map leaves the BRDF sampler alone; bad input is refused or
+/// answered with 0 / `None`.
+#[test]
+fn black_maps_and_bad_input() {
+    let black = EnvMap::from_fn(8, 4, |_, _| Rgb::ZERO).unwrap();
+    let s = sampler(&black, Vec3::Z, 0.15);
+    let wo = Vec3::new(0.0, 0.6, 0.8);
+    let d = s.sample(wo, Vec2::new(0.3, 0.7)).unwrap();
+    assert_eq!(d, CosineSampler.sample(wo, Vec2::new(0.3, 0.7)).unwrap());
+    assert_eq!(s.query(wo).unwrap().grid_share(), 0.0);
+    assert!(s.sample(-wo, Vec2::splat(0.5)).is_none());
+    assert_eq!(s.pdf(-wo, wo), 0.0);
+    assert_eq!(s.pdf(wo, -wo), 0.0);
+    assert_eq!(s.pdf(wo, Vec3::new(f32::NAN, 0.0, 1.0)), 0.0);
+    let env = Arc::new(ProductEnv::new(Arc::new(black), 8, 1).unwrap());
+    let bad_normal = ProductSampler::new(
+        Arc::new(CosineSampler),
+        env,
+        Vec3::new(f32::NAN, 0.0, 1.0),
+        ProductOptions::default(),
+    );
+    assert!(matches!(
+        bad_normal,
+        Err(Error::InvalidParameter { name: "normal", .. })
+    ));
+    for bad in [
+        ProductOptions {
+            block_columns: 0,
+            ..ProductOptions::default()
+        },
+        ProductOptions {
+            defensive: 1.5,
+            ..ProductOptions::default()
+        },
+        ProductOptions {
+            defensive: f32::NAN,
+            ..ProductOptions::default()
+        },
+    ] {
+        assert!(bad.validate().is_err(), "{bad:?}");
+    }
+}
