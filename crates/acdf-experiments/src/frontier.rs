@@ -3,14 +3,16 @@
 //! sampler's efficiency, by default the 32x16x256x32 table of Lawrence et
 //! al.
 //!
-//! A family without a tolerance (cosine, uniform at its one resolution,
-//! lobes) has one point, its storage and relative efficiency; it reaches
-//! every level up to that efficiency. A family with a tolerance (every
-//! `adaptive:SIMPLIFIER`, `outgoing:chi2`) is searched with the target
-//! search ([`search_tolerance`]) once per level, in increasing order, each
-//! search starting at the tolerance the previous level chose (the first at
-//! the family's default, which is therefore its first candidate). Every
-//! candidate of every search is kept, and the frontier at a level is the
+//! Every family is first built as `acdf build` builds it without a
+//! tolerance: its default. A family without a tolerance (cosine, uniform
+//! at its one resolution, lobes) has that one point, its storage and
+//! relative efficiency; it reaches every level up to that efficiency. A
+//! family with a tolerance (every `adaptive:SIMPLIFIER`, `outgoing:chi2`)
+//! is also searched with the target search ([`search_tolerance`]) once per
+//! level, in increasing order, each search starting at the tolerance the
+//! previous level chose (the first at the family's default tolerance).
+//! The default and every candidate of every search are kept, and the
+//! frontier at a level is the
 //! least storage among the candidates whose relative efficiency reaches
 //! it: a candidate that reaches a level reaches every lower one, so the
 //! storage is monotone in the level by construction. When no tolerance
@@ -96,7 +98,8 @@ pub struct FrontierRow {
     /// Whether some measured sampler of the family reaches it.
     pub reached: bool,
     /// The least storage that reaches it, with that sampler's relative
-    /// efficiency and tolerance.
+    /// efficiency and tolerance (`None` for the family as built without
+    /// one).
     pub storage_bytes: Option<usize>,
     pub relative_efficiency: Option<f64>,
     pub tolerance: Option<f64>,
@@ -197,8 +200,28 @@ pub fn frontier_material(
     for spec in frontier_families(material) {
         let family = spec.to_string();
         progress(&family);
-        let (points, default) = if spec_default_tolerance(spec).is_some() {
-            family_searched(
+        // The family as built without a tolerance: for a family with one,
+        // its default (which may differ from any tolerance given, e.g. a
+        // storage cap that applies only by default).
+        let sampler = make_sampler_tabulated(spec, material, &config.options, &tables)?;
+        let rv = integrands.noise_free(&sampler).relative_variance;
+        let times = time_samplers(
+            material.brdf.as_ref(),
+            &[reference.sampler, &sampler as &dyn BxdfSampler],
+            &efficiency,
+        );
+        let default = Point {
+            tolerance: None,
+            storage_bytes: sampler.storage_bytes(),
+            relative_efficiency: relative(
+                efficiency_of(rv, times[1].sampler_seconds()),
+                efficiency_of(reference.relative_variance, times[0].sampler_seconds()),
+            ),
+        };
+        drop(sampler);
+        let mut points = vec![default];
+        if spec_default_tolerance(spec).is_some() {
+            points.extend(family_searched(
                 material,
                 spec,
                 config,
@@ -208,32 +231,15 @@ pub fn frontier_material(
                 &levels,
                 &efficiency,
                 |t| progress(&format!("{family}: tolerance {t:.2e}")),
-            )?
-        } else {
-            let sampler = make_sampler_tabulated(spec, material, &config.options, &tables)?;
-            let rv = integrands.noise_free(&sampler).relative_variance;
-            let times = time_samplers(
-                material.brdf.as_ref(),
-                &[reference.sampler, &sampler as &dyn BxdfSampler],
-                &efficiency,
-            );
-            let point = Point {
-                tolerance: None,
-                storage_bytes: sampler.storage_bytes(),
-                relative_efficiency: relative(
-                    efficiency_of(rv, times[1].sampler_seconds()),
-                    efficiency_of(reference.relative_variance, times[0].sampler_seconds()),
-                ),
-            };
-            (vec![point], point)
-        };
+            )?);
+        }
         rows.extend(rows_from_points(&label, &family, &levels, &points, default));
     }
     Ok(rows)
 }
 
 /// Every candidate of the target searches of `spec` at `levels` (in
-/// increasing order), and the one at the default tolerance.
+/// increasing order).
 #[allow(clippy::too_many_arguments)]
 fn family_searched(
     material: &Material,
@@ -245,9 +251,8 @@ fn family_searched(
     levels: &[f64],
     efficiency: &EfficiencyConfig,
     mut progress: impl FnMut(f64),
-) -> Result<(Vec<Point>, Point)> {
+) -> Result<Vec<Point>> {
     let mut points: Vec<Point> = Vec::new();
-    let mut default = None;
     let mut start = None;
     for &level in levels {
         let (outcome, _) = search_tolerance(
@@ -270,8 +275,6 @@ fn family_searched(
             relative_efficiency: c.relative_efficiency,
         });
         points.extend(tried);
-        // The first search starts at the default tolerance.
-        default.get_or_insert(points[0]);
         if !outcome.reached {
             break;
         }
@@ -280,8 +283,7 @@ fn family_searched(
             break;
         }
     }
-    let default = default.expect("at least one level is searched");
-    Ok((points, default))
+    Ok(points)
 }
 
 /// A family's frontier over the materials at one level.
