@@ -494,7 +494,8 @@ pub fn write_frontier_csv(rows: &[FrontierRow], out: &mut impl Write) -> std::io
 /// The frontier's figure: storage (x, bytes) against the level of the
 /// reference's efficiency (y), one curve per family with tables, in two
 /// panels: the median material and the worst. A family without tables
-/// (storage 0) is a note; a level not reached is left out of its curve.
+/// (storage 0) is a note; a level not reached is left out of its curve
+/// (a family with no level left is a note in that panel).
 pub fn plot_frontier(
     summary: &[FamilySummary],
     title: &str,
@@ -516,13 +517,22 @@ pub fn plot_frontier(
                     Some((storage?, l.level))
                 })
                 .collect();
-            if points.iter().all(|p| p.0 <= 0.0) {
+            // A family keeps its place (and colour) in both panels if it
+            // has tables anywhere; one without is a note.
+            let has_tables = s.levels.iter().any(|l| {
+                l.median_storage_bytes.is_some_and(|b| b > 0.0)
+                    || l.worst_storage_bytes.is_some_and(|b| b > 0)
+            });
+            if !has_tables {
                 let top = points.iter().map(|p| p.1).reduce(f64::max);
                 notes.push(match top {
                     Some(l) => format!("{} (no tables): reaches {l}", s.family),
-                    None => format!("{} (no tables): reaches no level", s.family),
+                    None => format!("{}: reaches no level", s.family),
                 });
                 continue;
+            }
+            if points.is_empty() {
+                notes.push(format!("{}: reaches no level on every material", s.family));
             }
             series.push(Series {
                 label: s.family.clone(),
