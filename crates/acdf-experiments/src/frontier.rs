@@ -532,7 +532,7 @@ pub fn plot_frontier(
                 continue;
             }
             if points.is_empty() {
-                notes.push(format!("{}: reaches no level on every material", s.family));
+                notes.push(format!("{}: no level reached on every material", s.family));
             }
             series.push(Series {
                 label: s.family.clone(),
