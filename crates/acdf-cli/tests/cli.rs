@@ -696,6 +696,104 @@ fn survey_writes_csv_json_figures_and_a_summary() {
     assert!(png.width() > 100 && png.height() > 100);
 }
 
+/// The storage frontier on two built-in materials at a small resolution:
+/// the CSV's columns, one row per material, family and level, a level
+/// reached exactly when the chosen sampler's relative efficiency reaches
+/// it, and storage that never shrinks as the level rises.
+#[test]
+fn survey_frontier_is_monotone_in_the_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let prefix = dir.path().join("small");
+    let o = acdf(&[
+        "survey",
+        "--materials",
+        "builtin:nickel,builtin:gray-plastic",
+        "--resolution",
+        "8x1x32x8",
+        "--reference",
+        "uniform@8x4x32x8",
+        "--quadrature",
+        "64x32",
+        "--timing-samples",
+        "64",
+        "--timing-repeats",
+        "2",
+        "--frontier",
+        "--frontier-out",
+        prefix.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("frontier of 2 materials x"), "{out}");
+    assert!(out.contains("| ≥ 0.95 in ≤ 1,024 B |"), "{out}");
+    let csv = std::fs::read_to_string(dir.path().join("small.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "material,family,level,reached,storage_bytes,relative_efficiency,tolerance,\
+         default_storage_bytes,default_relative_efficiency,candidates"
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert!(rows.iter().all(|r| r.len() == 10), "{csv}");
+    let mut families: Vec<&str> = rows.iter().map(|r| r[1]).collect();
+    families.sort_unstable();
+    families.dedup();
+    for f in [
+        "cosine",
+        "uniform",
+        "lobes",
+        "adaptive:chi2",
+        "adaptive:opheim",
+        "outgoing:chi2",
+    ] {
+        assert!(families.contains(&f), "{f} in {families:?}");
+    }
+    assert_eq!(rows.len(), 2 * families.len() * 5, "{csv}");
+    for material in ["nickel", "gray-plastic"] {
+        for family in &families {
+            let mine: Vec<&Vec<&str>> = rows
+                .iter()
+                .filter(|r| r[0] == material && r[1] == *family)
+                .collect();
+            let levels: Vec<f64> = mine.iter().map(|r| r[2].parse().unwrap()).collect();
+            assert_eq!(levels, [0.5, 0.8, 0.95, 1.0, 2.0]);
+            let mut last: Option<usize> = Some(0);
+            for (r, level) in mine.iter().zip(levels) {
+                let reached: bool = r[3].parse().unwrap();
+                let storage: Option<usize> = r[4].parse().ok();
+                assert_eq!(reached, storage.is_some(), "{r:?}");
+                if reached {
+                    let e: f64 = r[5].parse().unwrap();
+                    assert!(e >= level, "{r:?}");
+                    // Higher level, no less storage; nothing reached above
+                    // a level not reached.
+                    let prev = last.expect("reached after a level not reached");
+                    assert!(storage.unwrap() >= prev, "{material} {family}: {mine:?}");
+                }
+                last = storage;
+            }
+        }
+    }
+    let json = read_json(&dir.path().join("small.json"));
+    assert_eq!(json["rows"].as_array().unwrap().len(), rows.len());
+    assert_eq!(json["summary"].as_array().unwrap().len(), families.len());
+    let svg = std::fs::read_to_string(dir.path().join("small.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("outgoing:chi2"));
+    let png = image::open(dir.path().join("small.png")).unwrap();
+    assert!(png.width() > 100 && png.height() > 100);
+
+    let o = acdf(&[
+        "survey",
+        "--materials",
+        "builtin:nickel",
+        "--frontier",
+        "0.5,fast",
+        "--frontier-out",
+        prefix.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "fast");
+}
+
 #[test]
 fn sweep_writes_csv_json_svg_and_png() {
     let dir = tempfile::tempdir().unwrap();

@@ -4,7 +4,7 @@
 //! ([`efficiency`]), the per-material results table ([`report`]), the
 //! tolerance sweep of the adaptive simplifiers ([`sweep`]), the search of a
 //! tolerance for a target efficiency ([`target`]), the survey of all 100
-//! MERL materials ([`survey`]), the storage and irradiance-variance report
+//! MERL materials ([`survey`]) and its storage frontier ([`frontier`]), the storage and irradiance-variance report
 //! of the environment samplers ([`env_report`]) and the figures ([`plot`]).
 //!
 //! Estimator efficiency is 1 / (r · t_s): r the relative variance of the
@@ -21,6 +21,7 @@
 
 pub mod efficiency;
 pub mod env_report;
+pub mod frontier;
 pub mod plot;
 pub mod report;
 pub mod survey;
