@@ -16,7 +16,7 @@
 //! which distribution is sampled (slightly), never the exactness of its
 //! density.
 
-use acdf_core::search::{count_one, short_window_at_or_below_u32, Guide, WINDOW};
+use acdf_core::search::{count_one, mask_at_or_below, short_window_at_or_below_u32, Guide, WINDOW};
 use acdf_core::{clamp_unit, Distribution2D, Error, Result, Sample2D, Vec2, ONE_MINUS_EPSILON};
 use acdf_lights::TableBuilder;
 
@@ -183,19 +183,13 @@ impl PackedEnvCdf2D {
                 "{n_x} x {n_y} texels: at most 65535 columns and 65535 rows"
             )));
         }
-        let rows: Vec<f64> = values
-            .chunks_exact(n_x)
-            .map(|r| r.iter().map(|&v| v as f64).sum())
-            .collect();
+        let rows = row_sums(values, n_x);
         let total: f64 = rows.iter().sum();
         let cells = (n_x * n_y) as f64;
         let m = d.marginal_vertex_count();
         let marginal_rows = grid_indices(&d.marginal[..m], n_y)?;
         let (marginal_rows, segment_mass) = if total > 0.0 {
-            let mass: Vec<f64> = marginal_rows
-                .windows(2)
-                .map(|w| rows[w[0]..w[1]].iter().sum())
-                .collect();
+            let mass = segment_masses(&rows, &marginal_rows);
             (marginal_rows, mass)
         } else {
             // No mass: the uniform density over one segment.
@@ -210,7 +204,6 @@ impl PackedEnvCdf2D {
         let mut firsts = vec![0u32];
         let mut conditionals: Vec<Pair> = Vec::new();
         let mut conditional_guide: Vec<ConditionalGuide> = Vec::new();
-        let mut columns = vec![0.0f64; n_x];
         for (j, w) in marginal_rows.windows(2).enumerate() {
             if quantised[j + 1] > quantised[j] {
                 let xs = if total > 0.0 {
@@ -224,20 +217,12 @@ impl PackedEnvCdf2D {
                 } else {
                     vec![0, n_x]
                 };
-                if total > 0.0 {
-                    columns.iter_mut().for_each(|c| *c = 0.0);
-                    for row in values[w[0] * n_x..w[1] * n_x].chunks_exact(n_x) {
-                        for (c, &v) in columns.iter_mut().zip(row) {
-                            *c += v as f64;
-                        }
-                    }
+                let columns = if total > 0.0 {
+                    column_sums(values, n_x, w[0]..w[1])
                 } else {
-                    columns.iter_mut().for_each(|c| *c = 1.0);
-                }
-                let masses: Vec<f64> = pos
-                    .windows(2)
-                    .map(|p| columns[p[0]..p[1]].iter().sum())
-                    .collect();
+                    vec![1.0; n_x]
+                };
+                let masses = segment_masses(&columns, &pos);
                 let cdf = quantise(&masses, Q16);
                 conditionals.extend(pos.iter().zip(&cdf).map(|(&p, &c)| p as u32 | c << 16));
                 conditional_guide.push(ConditionalGuide::new(&cdf));
@@ -470,21 +455,57 @@ impl TableBuilder for PackedEnvBuilder {
 }
 
 /// Grid indices k of positions k / n (exact for the vertices a simplifier
-/// keeps of a tabulated CDF).
-fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<usize>> {
+/// keeps of a tabulated CDF): the stored form of a curve's positions, for
+/// the packed environment tables and the outgoing samplers' slices. The
+/// error is the first position off the grid.
+pub(crate) fn grid_positions(xs: &[f32], n: usize) -> std::result::Result<Vec<usize>, f32> {
     xs.iter()
         .map(|&x| {
             let t = x as f64 * n as f64;
             let k = t.round();
             if (t - k).abs() > 1e-3 || k < 0.0 || k > n as f64 {
-                Err(too_large(format!(
-                    "vertex at {x} is not on the grid of {n} cells"
-                )))
+                Err(x)
             } else {
                 Ok(k as usize)
             }
         })
         .collect()
+}
+
+/// [`grid_positions`], an error of the packed table for a position off
+/// the grid.
+fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<usize>> {
+    grid_positions(xs, n)
+        .map_err(|x| too_large(format!("vertex at {x} is not on the grid of {n} cells")))
+}
+
+/// The sums of the rows of `values` (rows of `n_x`), in f64.
+pub(crate) fn row_sums(values: &[f32], n_x: usize) -> Vec<f64> {
+    values
+        .chunks_exact(n_x)
+        .map(|r| r.iter().map(|&v| v as f64).sum())
+        .collect()
+}
+
+/// The masses between consecutive indices `bounds` of the per-row or
+/// per-column sums `sums`: a curve's segment masses.
+pub(crate) fn segment_masses<I: Copy + Into<usize>>(sums: &[f64], bounds: &[I]) -> Vec<f64> {
+    bounds
+        .windows(2)
+        .map(|w| sums[w[0].into()..w[1].into()].iter().sum())
+        .collect()
+}
+
+/// The sums of the columns of `values` (rows of `n_x`) over the rows
+/// `rows` (a marginal segment), in f64.
+pub(crate) fn column_sums(values: &[f32], n_x: usize, rows: std::ops::Range<usize>) -> Vec<f64> {
+    let mut columns = vec![0.0f64; n_x];
+    for row in values[rows.start * n_x..rows.end * n_x].chunks_exact(n_x) {
+        for (c, &v) in columns.iter_mut().zip(row) {
+            *c += v as f64;
+        }
+    }
+    columns
 }
 
 /// Quantised CDF values (0 to `q`) of segments with these masses (not all
@@ -536,15 +557,6 @@ fn count_short_window(data: &[u32], start: usize, len: usize, key: u32) -> usize
         None => mask_at_or_below(&data[start.min(data.len())..], key),
     };
     (mask.trailing_ones() as usize).min(len)
-}
-
-/// Bit k set where `entries[k] <= key`, one entry at a time: the portable
-/// form of both window compares, for at most 32 entries.
-fn mask_at_or_below(entries: &[u32], key: u32) -> u32 {
-    entries
-        .iter()
-        .enumerate()
-        .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
 }
 
 #[cfg(test)]

@@ -321,21 +321,12 @@ pub struct FamilySummary {
 /// The median of storages, `None` standing for infinity (not reached);
 /// `None` when the median is infinite or there is no value.
 fn median_storage(values: &[Option<usize>]) -> Option<f64> {
-    let mut v: Vec<f64> = values
+    let v: Vec<f64> = values
         .iter()
         .map(|s| s.map_or(f64::INFINITY, |b| b as f64))
         .collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    let m = if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    };
-    m.is_finite().then_some(m)
+    let m = crate::efficiency::median(&v);
+    (!v.is_empty() && m.is_finite()).then_some(m)
 }
 
 /// The summary of frontier rows per family, in the order of `families`, at

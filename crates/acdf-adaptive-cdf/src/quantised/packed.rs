@@ -3,6 +3,7 @@
 //! along φ_h) and 16-bit CDF values, sampled and evaluated in that form.
 
 use crate::curve::Curve;
+use crate::packed_env::{column_sums, grid_positions, row_sums, segment_masses};
 use crate::AdaptiveCdf2D;
 use acdf_core::search::Key;
 use acdf_core::{Error, Result};
@@ -175,10 +176,7 @@ impl PackedCdf2D {
                 ),
             });
         }
-        let rows: Vec<f64> = values
-            .chunks_exact(n_x)
-            .map(|r| r.iter().map(|&v| v as f64).sum())
-            .collect();
+        let rows = row_sums(values, n_x);
         let total: f64 = rows.iter().sum();
         let marginal_pos = grid_indices(d.marginal_positions(), n_y)?;
         if !(total > 0.0) {
@@ -191,11 +189,7 @@ impl PackedCdf2D {
                 &[0, Q],
             ));
         }
-        let segment_mass: Vec<f64> = marginal_pos
-            .windows(2)
-            .map(|w| rows[w[0] as usize..w[1] as usize].iter().sum())
-            .collect();
-        let marginal_cdf = quantise(&segment_mass);
+        let marginal_cdf = quantise(&segment_masses(&rows, &marginal_pos));
         let mut offsets = vec![0u16];
         let (mut conditional_pos, mut conditional_cdf) = (Vec::new(), Vec::new());
         for (j, w) in marginal_pos.windows(2).enumerate() {
@@ -387,15 +381,8 @@ impl PackedCdf2D {
 /// `rows.1` (a marginal segment) between consecutive conditional
 /// positions `pos` (grid indices along x), summed in f64.
 pub fn conditional_masses(values: &[f32], n_x: usize, rows: (u16, u16), pos: &[u16]) -> Vec<f64> {
-    let mut columns = vec![0.0f64; n_x];
-    for row in values[rows.0 as usize * n_x..rows.1 as usize * n_x].chunks_exact(n_x) {
-        for (c, &v) in columns.iter_mut().zip(row) {
-            *c += v as f64;
-        }
-    }
-    pos.windows(2)
-        .map(|p| columns[p[0] as usize..p[1] as usize].iter().sum())
-        .collect()
+    let columns = column_sums(values, n_x, rows.0 as usize..rows.1 as usize);
+    segment_masses(&columns, pos)
 }
 
 /// Check the offsets of `m` marginal vertices into `conditionals`
@@ -450,22 +437,16 @@ pub fn check_curve<P: Stored + PartialOrd>(
 }
 
 /// Grid indices of positions k / n (exact for the vertices a simplifier
-/// keeps of a tabulated CDF).
+/// keeps of a tabulated CDF), in 16 bits (the caller has checked that n
+/// fits).
 pub fn grid_indices(xs: &[f32], n: usize) -> Result<Vec<u16>> {
-    xs.iter()
-        .map(|&x| {
-            let t = x as f64 * n as f64;
-            let k = t.round();
-            if (t - k).abs() > 1e-3 || k < 0.0 || k > n as f64 {
-                Err(Error::InvalidParameter {
-                    name: "outgoing slice",
-                    reason: format!("vertex at {x} is not on the grid of {n} cells"),
-                })
-            } else {
-                Ok(k as u16)
-            }
-        })
-        .collect()
+    match grid_positions(xs, n) {
+        Ok(k) => Ok(k.into_iter().map(|k| k as u16).collect()),
+        Err(x) => Err(Error::InvalidParameter {
+            name: "outgoing slice",
+            reason: format!("vertex at {x} is not on the grid of {n} cells"),
+        }),
+    }
 }
 
 /// Quantised CDF values (0 to 65535) of segments with these masses (not all

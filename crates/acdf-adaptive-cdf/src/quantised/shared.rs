@@ -26,6 +26,7 @@ use super::packed::{
     Stored, Q, QF,
 };
 use crate::curve::Curve;
+use crate::packed_env::{row_sums, segment_masses};
 use crate::simplify::Simplifier;
 use crate::AdaptiveCdf2D;
 use acdf_core::search::count_one;
@@ -110,13 +111,8 @@ impl SharedSlices {
             name: "outgoing slices",
             reason: format!("{what} do not fit the stored indices"),
         };
-        let row_sums = |t: &[f32]| -> Vec<f64> {
-            t.chunks_exact(n_x)
-                .map(|r| r.iter().map(|&v| v as f64).sum())
-                .collect()
-        };
         // Every table's row sums, once, and its total.
-        let rows: Vec<Vec<f64>> = tables.iter().map(|t| row_sums(t)).collect();
+        let rows: Vec<Vec<f64>> = tables.iter().map(|t| row_sums(t, n_x)).collect();
         let totals: Vec<f64> = rows.iter().map(|r| r.iter().sum()).collect();
         let (mut mean, mut roots) = (vec![0.0f64; n_x * n_y], vec![0.0f64; n_x * n_y]);
         for (t, &total) in tables.iter().zip(&totals) {
@@ -179,17 +175,14 @@ impl SharedSlices {
         let c = conditional_pos.len();
         let stride = m + c;
         let mut cdf = Vec::with_capacity(stride * tables.len());
-        let grid_table_rows = row_sums(&grid_table);
+        let grid_table_rows = row_sums(&grid_table, n_x);
         for ((t, t_rows), &total) in tables.iter().zip(&rows).zip(&totals) {
             let (table, rows): (&[f32], &[f64]) = if total > 0.0 {
                 (t, t_rows)
             } else {
                 (&grid_table, &grid_table_rows)
             };
-            let segment_mass: Vec<f64> = marginal_pos
-                .windows(2)
-                .map(|w| rows[w[0] as usize..w[1] as usize].iter().sum())
-                .collect();
+            let segment_mass = segment_masses(rows, &marginal_pos);
             if segment_mass.iter().sum::<f64>() > 0.0 {
                 cdf.extend(quantise(&segment_mass));
             } else {

@@ -270,18 +270,18 @@ unsafe fn at_or_below_mask_evex(window: &[f32; WINDOW], v: f32) -> u32 {
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
 fn at_or_below_mask(window: &[f32; WINDOW], v: f32) -> u32 {
-    at_or_below_mask_portable(window, v)
+    mask_at_or_below(window, v)
 }
 
-/// [`at_or_below_mask`] one entry at a time: the form for CPUs other than
-/// x86-64, and the reference the tests hold the others to.
-#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+/// Bit k set where `entries[k] <= key`, one entry at a time, for at most
+/// 32 entries: every window compare's form for CPUs other than x86-64, and
+/// the reference the tests hold the vector forms to.
 #[inline(always)]
-fn at_or_below_mask_portable(window: &[f32; WINDOW], v: f32) -> u32 {
-    window
+pub fn mask_at_or_below<K: Copy + PartialOrd>(entries: &[K], key: K) -> u32 {
+    entries
         .iter()
         .enumerate()
-        .fold(0, |mask, (k, &e)| mask | ((e <= v) as u32) << k)
+        .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
 }
 
 /// The width of a short window: one eight-wide compare.
@@ -464,7 +464,7 @@ pub fn window_at_or_below_u16(window: &[u16; WINDOW], key: u16) -> u32 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        narrow_mask_portable(window, key)
+        mask_at_or_below(window, key)
     }
 }
 
@@ -477,20 +477,8 @@ pub fn window_at_or_below_u8(window: &[u8; WINDOW], key: u8) -> u32 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        narrow_mask_portable(window, key)
+        mask_at_or_below(window, key)
     }
-}
-
-/// /// [`window_at_or_below_u16`] and [`window_at_or_below_u8`] one entry at a
-/// time: the form for CPUs other than x86-64, and the reference the tests
-/// hold the SSE2 forms to.
-#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-#[inline(always)]
-fn narrow_mask_portable<P: Copy + PartialOrd>(window: &[P; WINDOW], key: P) -> u32 {
-    window
-        .iter()
-        .enumerate()
-        .fold(0, |mask, (l, &p)| mask | ((p <= key) as u32) << l)
 }
 
 /// [`window_at_or_below_u16`] by SSE2 (the x86-64
@@ -576,7 +564,7 @@ pub fn window_at_or_below_u32(window: &[u32; WINDOW], key: u32) -> u32 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        u32_mask_portable(window, key)
+        mask_at_or_below(window, key)
     }
 }
 
@@ -608,20 +596,8 @@ pub fn short_window_at_or_below_u32(window: &[u32; SHORT_WINDOW], key: u32) -> u
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        u32_mask_portable(window, key)
+        mask_at_or_below(window, key)
     }
-}
-
-/// [`window_at_or_below_u32`] and [`short_window_at_or_below_u32`] one
-/// entry at a time: the form for CPUs other than x86-64, and the reference
-/// the tests hold the SSE2 forms to.
-#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-#[inline(always)]
-fn u32_mask_portable(entries: &[u32], key: u32) -> u32 {
-    entries
-        .iter()
-        .enumerate()
-        .fold(0, |mask, (k, &e)| mask | ((e <= key) as u32) << k)
 }
 
 #[cfg(test)]
@@ -657,7 +633,7 @@ mod tests {
                 ][(state >> 61) as usize]
             });
             for v in [0.0, 0.5, 1.0, f32::NAN, 0.25, -0.0, f32::INFINITY, 1e-40] {
-                let expected = at_or_below_mask_portable(&window, v);
+                let expected = mask_at_or_below(&window, v);
                 let plain = window
                     .iter()
                     .enumerate()
@@ -888,10 +864,10 @@ mod tests {
                 keys8.extend([w8[l], w8[l].wrapping_sub(1), w8[l].wrapping_add(1)]);
             }
             for k in keys16 {
-                assert_eq!(mask_u16_sse2(&w16, k), narrow_mask_portable(&w16, k), "{k}");
+                assert_eq!(mask_u16_sse2(&w16, k), mask_at_or_below(&w16, k), "{k}");
             }
             for k in keys8 {
-                assert_eq!(mask_u8_sse2(&w8, k), narrow_mask_portable(&w8, k), "{k}");
+                assert_eq!(mask_u8_sse2(&w8, k), mask_at_or_below(&w8, k), "{k}");
             }
         }
     }
@@ -923,10 +899,10 @@ mod tests {
                 w[20],
             ];
             for key in keys {
-                assert_eq!(window_at_or_below_u32(&w, key), u32_mask_portable(&w, key));
+                assert_eq!(window_at_or_below_u32(&w, key), mask_at_or_below(&w, key));
                 assert_eq!(
                     short_window_at_or_below_u32(short, key),
-                    u32_mask_portable(short, key)
+                    mask_at_or_below(short, key)
                 );
             }
         }
