@@ -199,24 +199,15 @@ pub fn run(a: Args) -> Result<()> {
         summary: &summary,
         rows: &rows,
     };
-    let base = a.out.join("survey");
     let mut csv = Vec::new();
     write_csv(&rows, &mut csv)?;
-    let paths = [
-        base.with_extension("csv"),
-        base.with_extension("json"),
-        base.with_extension("svg"),
-        base.with_extension("png"),
-    ];
-    write_file(&paths[0], &csv)?;
-    write_json(&paths[1], &file)?;
     let title = format!(
         "{} MERL materials: compression and efficiency against {reference}",
         specs.len()
     );
-    let (svg, png) = plot_survey(&rows, &labels, &title, &paths[2])?;
-    write_file(&paths[2], svg.as_bytes())?;
-    write_file(&paths[3], &png)?;
+    let paths = write_outputs(&a.out.join("survey"), &csv, &file, |svg| {
+        plot_survey(&rows, &labels, &title, svg)
+    })?;
     println!(
         "{} materials x {} samplers in {seconds:.0} s ({} threads, load average {} at the start, {} at the end); reference {reference}",
         specs.len(),
@@ -330,6 +321,26 @@ fn frontier_levels(list: &str, target: f64) -> Result<Vec<f64>> {
     check_levels(&levels)
 }
 
+/// Write PREFIX.csv, PREFIX.json and the figure `plot` draws for its SVG
+/// path (PREFIX.svg and PREFIX.png); the four paths.
+fn write_outputs<P>(
+    prefix: &Path,
+    csv: &[u8],
+    json: &impl Serialize,
+    plot: P,
+) -> Result<[PathBuf; 4]>
+where
+    P: FnOnce(&Path) -> Result<(String, Vec<u8>)>,
+{
+    let paths = ["csv", "json", "svg", "png"].map(|e| with_suffix(prefix, e));
+    write_file(&paths[0], csv)?;
+    write_json(&paths[1], json)?;
+    let (svg, png) = plot(&paths[2])?;
+    write_file(&paths[2], svg.as_bytes())?;
+    write_file(&paths[3], &png)?;
+    Ok(paths)
+}
+
 /// `prefix` with `.ext` appended (not replacing a dot of the prefix).
 fn with_suffix(prefix: &Path, ext: &str) -> PathBuf {
     let mut s = OsString::from(prefix.as_os_str());
@@ -408,19 +419,16 @@ fn run_frontier(
         summary: &summary,
         rows: &rows,
     };
-    let paths = ["csv", "json", "svg", "png"].map(|e| with_suffix(&prefix, e));
     let mut csv = Vec::new();
     write_frontier_csv(&rows, &mut csv)?;
-    write_file(&paths[0], &csv)?;
-    write_json(&paths[1], &file)?;
     let title = format!(
         "Storage frontier, {} materials: least storage reaching each level of {}'s efficiency",
         specs.len(),
         config.reference
     );
-    let (svg, png) = plot_frontier(&summary, &title, &paths[2])?;
-    write_file(&paths[2], svg.as_bytes())?;
-    write_file(&paths[3], &png)?;
+    let paths = write_outputs(&prefix, &csv, &file, |svg| {
+        plot_frontier(&summary, &title, svg)
+    })?;
     println!(
         "frontier of {} materials x {} families in {seconds:.0} s (load average {} at the start, {} at the end); reference {}",
         specs.len(),
