@@ -18,9 +18,15 @@
 //! fewer and a new lobe sharper or broader than the others; each is
 //! refined by Nelder–Mead for a fixed number of iterations. Every step is
 //! deterministic (fixed starts, sums in a fixed order, ties broken by
-//! position), so a material always gets the same bits. A further lobe is
-//! kept only if it lowers the objective by [`FitOptions::min_gain`]: a
-//! lobe costs a density evaluation per draw.
+//! position), so a material always gets the same bits.
+//!
+//! The lobe count, from none (cosine sampling alone) to [`MAX_LOBES`], is
+//! the one of least objective times [`FitOptions::draw_cost`], the time a
+//! draw takes with that many lobes: the product is the inverse of the
+//! sampler's efficiency, as `acdf report` measures it. A further lobe is
+//! also required to lower that product by [`FitOptions::min_gain`]. A
+//! matte material keeps no lobe: there a GGX lobe lowers the variance by
+//! a few percent and doubles the time of a draw.
 
 use crate::{Lobes, Mixture, ALPHA_MAX, ALPHA_MIN, MAX_LOBES, MIN_DIFFUSE};
 use acdf_core::geometry::spherical_direction;
@@ -36,19 +42,28 @@ pub struct FitOptions {
     pub grid: HemisphereGrid,
     /// Nelder–Mead iterations per searched parameter.
     pub iterations_per_parameter: usize,
-    /// The relative decrease of the objective a further lobe must bring.
+    /// The relative decrease of objective × draw cost a further lobe must
+    /// bring.
     pub min_gain: f64,
+    /// The time of a draw (sample and density) with 0 to [`MAX_LOBES`] GGX
+    /// lobes, relative to none.
+    pub draw_cost: [f64; MAX_LOBES + 1],
 }
 
 impl Default for FitOptions {
     /// θ_o 10, 30, 50, 70 and 85°; 256 θ_h rows × 32 φ_h columns; 40
-    /// iterations per parameter; a further lobe must gain 2%.
+    /// iterations per parameter; a further lobe must gain 2%; a draw with
+    /// GGX lobes takes twice the time of one without, whatever their
+    /// number (the ns/sample of `acdf report --samples 0 --sampler lobes`:
+    /// about 22 with none, 37 to 48 with one to three, on the materials of
+    /// `docs/results.md`).
     fn default() -> Self {
         FitOptions {
             theta_o_degrees: vec![10.0, 30.0, 50.0, 70.0, 85.0],
             grid: HemisphereGrid::HalfVector { n_v: 256, n_x: 32 },
             iterations_per_parameter: 40,
             min_gain: 0.02,
+            draw_cost: [1.0, 2.0, 2.0, 2.0],
         }
     }
 }
@@ -60,8 +75,9 @@ pub struct Fit {
     pub lobes: Lobes,
     /// Its mean relative variance over the fit's directions.
     pub objective: f64,
-    /// The best objective found with 1, 2 and 3 GGX lobes.
-    pub by_count: [f64; MAX_LOBES],
+    /// The best objective found with 0 (cosine sampling), 1, 2 and 3 GGX
+    /// lobes.
+    pub by_count: [f64; MAX_LOBES + 1],
     /// How many mixtures the search evaluated.
     pub evaluations: usize,
 }
@@ -178,9 +194,17 @@ fn decode(x: &[f64]) -> Result<Lobes> {
 
 /// Fit a mixture to `brdf` (module documentation).
 pub fn fit_with(brdf: &dyn Brdf, options: &FitOptions) -> Result<Fit> {
+    if !options.draw_cost.iter().all(|&c| c > 0.0 && c.is_finite()) {
+        return Err(Error::InvalidParameter {
+            name: "draw_cost",
+            reason: format!("{:?} are not all positive and finite", options.draw_cost),
+        });
+    }
     let mut objective = Objective::new(brdf, options)?;
-    let mut by_count = [f64::INFINITY; MAX_LOBES];
-    let mut best: Vec<(Vec<f64>, f64)> = Vec::new();
+    let mut by_count = [f64::INFINITY; MAX_LOBES + 1];
+    // No GGX lobe: the search point with no parameters.
+    let mut best: Vec<(Vec<f64>, f64)> = vec![(Vec::new(), objective.at(&[]))];
+    by_count[0] = best[0].1;
 
     // One lobe: the best of a grid of α and shares, refined.
     let mut start = (Vec::new(), f64::INFINITY);
@@ -196,7 +220,7 @@ pub fn fit_with(brdf: &dyn Brdf, options: &FitOptions) -> Result<Fit> {
     }
     for n in 1..=MAX_LOBES {
         if n > 1 {
-            start = extend(&mut objective, &best[n - 2].0);
+            start = extend(&mut objective, &best[n - 1].0);
         }
         let iterations = options.iterations_per_parameter * 2 * n;
         let refined = nelder_mead(|x| objective.at(x), &start.0, iterations);
@@ -205,12 +229,13 @@ pub fn fit_with(brdf: &dyn Brdf, options: &FitOptions) -> Result<Fit> {
         } else {
             start.clone()
         };
-        by_count[n - 1] = refined.1;
+        by_count[n] = refined.1;
         best.push(refined);
     }
+    let cost = |n: usize| best[n].1 * options.draw_cost[n];
     let mut chosen = 0;
-    for n in 1..MAX_LOBES {
-        if best[n].1 < best[chosen].1 * (1.0 - options.min_gain) {
+    for n in 1..=MAX_LOBES {
+        if cost(n) < cost(chosen) * (1.0 - options.min_gain) {
             chosen = n;
         }
     }

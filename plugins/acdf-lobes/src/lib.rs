@@ -1,5 +1,5 @@
 //! `acdf-lobes` is the small end of acdf's samplers: per material, a mixture
-//! of one cosine (diffuse) lobe and one to three GGX lobes about the normal,
+//! of one cosine (diffuse) lobe and up to three GGX lobes about the normal,
 //! with their weights, fitted to the material's f_r cos θ_i so as to
 //! minimise the variance of the one-sample estimator of ∫ f_r cos θ_i dω_i
 //! (the chi-square divergence between f_r cos θ_i, normalised per outgoing
@@ -81,15 +81,16 @@ pub const STORAGE_BYTES: usize = std::mem::size_of::<Lobes>();
 impl Lobes {
     /// A mixture of a cosine lobe of weight `diffuse` and the GGX lobes
     /// `(weight, alpha)` of `lobes`. Every value must be finite, there must
-    /// be 1 to [`MAX_LOBES`] lobes, `diffuse` at least [`MIN_DIFFUSE`], every
+    /// be at most [`MAX_LOBES`] lobes (none: cosine sampling, for a matte
+    /// material no GGX lobe improves), `diffuse` at least [`MIN_DIFFUSE`], every
     /// weight non-negative, every α in [[`ALPHA_MIN`], [`ALPHA_MAX`]], and the
     /// weights must sum to 1 (to 1e-4).
     pub fn new(diffuse: f32, lobes: &[(f32, f32)]) -> Result<Lobes> {
         let invalid = |name, reason: String| Err(Error::InvalidParameter { name, reason });
-        if lobes.is_empty() || lobes.len() > MAX_LOBES {
+        if lobes.len() > MAX_LOBES {
             return invalid(
                 "lobes",
-                format!("{} GGX lobes, not 1 to {MAX_LOBES}", lobes.len()),
+                format!("{} GGX lobes, not 0 to {MAX_LOBES}", lobes.len()),
             );
         }
         let values = std::iter::once(diffuse).chain(lobes.iter().flat_map(|&(w, a)| [w, a]));

@@ -69,10 +69,10 @@ impl LobesSampler {
         };
         let fingerprint = r.u64("fingerprint")?;
         let count = r.count("lobe count", 8)?;
-        if count == 0 || count > MAX_LOBES {
+        if count > MAX_LOBES {
             return Err(invalid(
                 "lobe count",
-                format!("{count} is not 1 to {MAX_LOBES}"),
+                format!("{count} is not 0 to {MAX_LOBES}"),
             ));
         }
         let diffuse = r.f32("diffuse weight")?;

@@ -59,6 +59,56 @@ fn the_fit_recovers_a_mixture() {
     );
 }
 
+/// A Lambertian material keeps no GGX lobe: cosine sampling is exact for
+/// it (relative variance 0 up to the quadrature), and no lobe gains the
+/// 2% a lobe must bring. Its sampler draws and evaluates like cosine
+/// sampling.
+#[test]
+fn a_lambertian_material_keeps_no_lobe() {
+    let lambert = acdf_materials::builtin("lambert").expect("built-in lambert");
+    let fit = fit_with(lambert.as_ref(), &FitOptions::default()).unwrap();
+    assert_eq!(fit.lobes.count(), 0, "{fit:?}");
+    assert_eq!(fit.lobes.diffuse(), 1.0);
+    assert!(fit.by_count[0] < 1e-3, "{fit:?}");
+    let sampler = LobesSampler::new(lambert.as_ref()).unwrap();
+    let wo = spherical_direction(0.7, 0.2);
+    let s = sampler.sample(wo, Vec2::new(0.3, 0.8)).unwrap();
+    let cosine = s.wi.z * FRAC_1_PI;
+    assert!((s.pdf - cosine).abs() <= 1e-6 * cosine, "{s:?}");
+    assert!((sampler.pdf(wo, s.wi) - cosine).abs() <= 1e-6 * cosine);
+    let nan_cost = FitOptions {
+        draw_cost: [1.0, f64::NAN, 2.0, 2.0],
+        ..FitOptions::default()
+    };
+    assert!(matches!(
+        fit_with(lambert.as_ref(), &nan_cost),
+        Err(Error::InvalidParameter {
+            name: "draw_cost",
+            ..
+        })
+    ));
+}
+
+/// The lobe count weighs variance by the time of a draw: a material whose
+/// best lobe lowers the variance by less than the lobe's cost keeps none,
+/// and keeps it when draws cost the same whatever the count.
+#[test]
+fn a_lobe_is_kept_only_where_it_pays_for_its_time() {
+    // Mostly cosine, and a broad GGX lobe: one lobe lowers the variance a
+    // little, far less than twice.
+    let truth = Mixture::new(Lobes::new(0.95, &[(0.05, 1.5)]).unwrap());
+    let brdf = MixtureBrdf(truth);
+    let fit = fit_with(&brdf, &FitOptions::default()).unwrap();
+    assert!(fit.by_count[1] < fit.by_count[0], "{fit:?}");
+    assert!(fit.by_count[1] * 2.0 > fit.by_count[0], "{fit:?}");
+    assert_eq!(fit.lobes.count(), 0, "{fit:?}");
+    let free = FitOptions {
+        draw_cost: [1.0; MAX_LOBES + 1],
+        ..FitOptions::default()
+    };
+    assert!(fit_with(&brdf, &free).unwrap().lobes.count() >= 1);
+}
+
 /// Two fits of the same material give the same bits.
 #[test]
 fn the_fit_is_deterministic() {
@@ -143,12 +193,11 @@ fn hostile_files_are_typed_errors() {
             ..
         })
     ));
+    // No GGX lobe is cosine sampling, which must then carry all the weight.
+    assert!(LobesSampler::from_bytes(&file(0, 1.0, &[])).is_ok());
     assert!(matches!(
-        LobesSampler::from_bytes(&file(0, 1.0, &[])),
-        Err(PersistError::Invalid {
-            field: "lobe count",
-            ..
-        })
+        LobesSampler::from_bytes(&file(0, 0.5, &[])),
+        Err(PersistError::Table(Error::InvalidParameter { .. }))
     ));
     // A count larger than the bytes that follow.
     assert!(matches!(
@@ -171,6 +220,7 @@ fn hostile_files_are_typed_errors() {
 #[test]
 fn bad_parameters_are_refused() {
     assert!(Lobes::new(0.5, &[]).is_err());
+    assert_eq!(Lobes::new(1.0, &[]).unwrap().count(), 0);
     assert!(Lobes::new(0.2, &[(0.2, 0.1); 4]).is_err());
     assert!(Lobes::new(0.5, &[(0.5, 2.0)]).is_err());
     assert!(Lobes::new(0.5, &[(0.5, f32::INFINITY)]).is_err());
