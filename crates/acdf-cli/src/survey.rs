@@ -71,6 +71,10 @@ pub struct Args {
     /// PREFIX.png (default OUT/frontier).
     #[arg(long, value_name = "PREFIX", requires = "frontier")]
     frontier_out: Option<PathBuf>,
+    /// Only these families of --frontier, comma-separated, as its rows name
+    /// them (e.g. outgoing:chi2,lobes; default: every family).
+    #[arg(long, value_name = "LIST", requires = "frontier")]
+    families: Option<String>,
     /// The fraction of the reference's efficiency adaptive:chi2 is tuned to
     /// keep, and the line of the summary's counts.
     #[arg(long, value_name = "E", default_value_t = 0.95)]
@@ -154,6 +158,11 @@ pub fn run(a: Args) -> Result<()> {
             options,
             levels: frontier_levels(levels, a.target_efficiency)?,
             efficiency,
+            families: a
+                .families
+                .as_deref()
+                .map(frontier_family_names)
+                .transpose()?,
         };
         return run_frontier(&a, &specs, weights.as_deref(), &config, &measure);
     }
@@ -366,6 +375,23 @@ struct FrontierFile<'a> {
     rows: &'a [FrontierRow],
 }
 
+/// The names of `--families`: each a family of the frontier (of a
+/// measured material: every family but `rgl`), else
+/// [`Error::InvalidArgument`] naming them.
+fn frontier_family_names(list: &str) -> Result<Vec<String>> {
+    let lambert = load_material(&MaterialSpec::Builtin("lambert".into()), None)?;
+    let known: Vec<String> = frontier_families(&lambert)
+        .iter()
+        .map(|f| f.to_string())
+        .collect();
+    parse_list(
+        list,
+        "frontier families",
+        "not a family of the frontier",
+        |name| known.iter().find(|k| *k == name).cloned(),
+    )
+}
+
 /// `acdf survey --frontier`: the frontier of every material, its files and
 /// its summary.
 fn run_frontier(
@@ -395,7 +421,7 @@ fn run_frontier(
     let mut rows: Vec<FrontierRow> = Vec::new();
     let mut families: Vec<String> = Vec::new();
     let seconds = each_material(specs, weights, "frontier", |m, progress| {
-        for f in frontier_families(m) {
+        for f in config.families_of(m) {
             let f = f.to_string();
             if !families.contains(&f) {
                 families.push(f);

@@ -792,6 +792,46 @@ fn survey_frontier_is_monotone_in_the_level() {
         prefix.to_str().unwrap(),
     ]);
     assert_one_line_error(&o, "fast");
+
+    // --families measures only the families named, and refuses others.
+    let o = acdf(&[
+        "survey",
+        "--materials",
+        "builtin:nickel",
+        "--resolution",
+        "8x1x32x8",
+        "--reference",
+        "uniform@8x4x32x8",
+        "--quadrature",
+        "64x32",
+        "--timing-samples",
+        "64",
+        "--timing-repeats",
+        "2",
+        "--frontier",
+        "--families",
+        "lobes,outgoing:chi2",
+        "--frontier-out",
+        prefix.to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let csv = std::fs::read_to_string(dir.path().join("small.csv")).unwrap();
+    let mut families: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap())
+        .collect();
+    families.dedup();
+    assert_eq!(families, ["lobes", "outgoing:chi2"], "{csv}");
+    let o = acdf(&[
+        "survey",
+        "--materials",
+        "builtin:nickel",
+        "--frontier",
+        "--families",
+        "lobes,adaptive:fast",
+    ]);
+    assert_one_line_error(&o, "adaptive:fast");
 }
 
 #[test]

@@ -154,10 +154,29 @@ pub struct FrontierConfig {
     pub options: SamplerOptions,
     pub levels: Vec<f64>,
     pub efficiency: EfficiencyConfig,
+    /// Only the families of these names ([`frontier_families`] as text,
+    /// e.g. `outgoing:chi2`); all when `None`.
+    pub families: Option<Vec<String>>,
+}
+
+impl FrontierConfig {
+    /// The families of [`frontier_families`] this configuration measures
+    /// for `material`.
+    pub fn families_of(&self, material: &Material) -> Vec<SamplerSpec> {
+        frontier_families(material)
+            .into_iter()
+            .filter(|f| {
+                self.families
+                    .as_ref()
+                    .is_none_or(|names| names.contains(&f.to_string()))
+            })
+            .collect()
+    }
 }
 
 /// The frontier of one material: the rows of every family of
-/// [`frontier_families`] at every level (see the module documentation).
+/// [`FrontierConfig::families_of`] at every level (see the module
+/// documentation).
 /// `progress` is called with what is being done.
 pub fn frontier_material(
     material: &Material,
@@ -197,7 +216,7 @@ pub fn frontier_material(
     };
     let label = material.label();
     let mut rows = Vec::new();
-    for spec in frontier_families(material) {
+    for spec in config.families_of(material) {
         let family = spec.to_string();
         progress(&family);
         // The family as built without a tolerance: for a family with one,
