@@ -281,6 +281,14 @@ impl BxdfSampler for Mixture {
         if !is_valid_outgoing(wo) {
             return None;
         }
+        if self.lobes.count() == 0 {
+            // Cosine sampling alone: the same bits as the general path
+            // (its one component has probability 1), without the pick and
+            // the mixture's sum.
+            let wi = square_to_cosine_hemisphere(Vec2::new(clamp_unit(u.x), clamp_unit(u.y)));
+            let pdf = wi.z * FRAC_1_PI;
+            return (pdf > 0.0).then_some(BxdfSample { wi, pdf });
+        }
         let (k, v) = self.pick(clamp_unit(u.x));
         let u = Vec2::new(v, clamp_unit(u.y));
         let wi = if k == 0 {
@@ -299,6 +307,9 @@ impl BxdfSampler for Mixture {
             return 0.0;
         }
         let mut p = self.probability[0] * wi.z * FRAC_1_PI;
+        if self.lobes.count() == 0 {
+            return p;
+        }
         let h = wo + wi;
         let sin2_o = wo.x * wo.x + wo.y * wo.y;
         for k in 0..self.lobes.count() {
