@@ -86,10 +86,6 @@ fn ggx() -> Arc<dyn Brdf> {
     })
 }
 
-fn anisotropic(brdf: Arc<dyn Brdf>) -> acdf_core::Result<AnisotropicOutgoingSampler> {
-    anisotropic_with(brdf, None)
-}
-
 /// The anisotropic sampler at 16x8x128x32 with the symmetry given
 /// (`None`: found).
 fn anisotropic_with(

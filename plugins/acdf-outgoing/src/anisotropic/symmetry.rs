@@ -109,8 +109,8 @@ impl Symmetry {
     /// Whether `fine_phi` nodes round the circle and `n_phi_h` φ_h columns
     /// carry the symmetry node to node and column to column.
     pub(crate) fn fits_grid(self, fine_phi: usize, n_phi_h: usize) -> bool {
-        let quarter = fine_phi % 4 == 0;
-        let half = fine_phi % 2 == 0 && n_phi_h % 2 == 0;
+        let quarter = fine_phi.is_multiple_of(4);
+        let half = fine_phi.is_multiple_of(2) && n_phi_h.is_multiple_of(2);
         match self {
             Symmetry::None => true,
             Symmetry::HalfTurn | Symmetry::MirrorY => half,
@@ -154,9 +154,10 @@ impl Transform {
         }
     }
 
-    /// Whether every fine table (θ_o node j, φ_o node l at j · fine_phi
-    /// + l, normalised, `n_phi_h` columns) is reproduced within `budget`
-    /// of chi-square divergence by its partner's table carried over.
+    /// Whether every fine table (θ_o node j, φ_o node l at index
+    /// j · fine_phi + l, normalised, `n_phi_h` columns) is reproduced
+    /// within `budget` of chi-square divergence by its partner's table
+    /// carried over.
     fn holds(
         self,
         p: &[Vec<f32>],
@@ -180,7 +181,7 @@ impl Transform {
 }
 
 /// The largest symmetry the normalised fine tables `p` (θ_o node j, φ_o
-/// node l at j · fine_phi + l, in `frame`) have within `budget`: both
+/// node l at index j · fine_phi + l, in `frame`) have within `budget`: both
 /// mirrors, then the mirror y → −y, then the turn by π, else none.
 pub(crate) fn detect(
     p: &[Vec<f32>],
