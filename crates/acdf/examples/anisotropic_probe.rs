@@ -13,7 +13,7 @@
 //!
 //! A tolerance is `TOL` or `TOL/BUDGET` (the budget otherwise follows
 //! the tolerance); prefixed with `none:` it builds without the φ_o
-//! symmetry.
+//! symmetry (`none:` alone: the default tolerance, capped).
 
 use acdf::env::{Environment, Sky};
 use acdf::material::load_material;
@@ -86,8 +86,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // TOL or TOL/BUDGET.
         let (tol, budget) = match spec.map(|s| s.split_once('/')) {
             Some(Some((t, b))) => (Some(t.parse::<f64>()?), Some(b.parse::<f64>()?)),
-            Some(None) => (Some(spec.unwrap_or("").parse::<f64>()?), None),
-            None => (None, None),
+            Some(None) if spec != Some("") => (Some(spec.unwrap_or("").parse::<f64>()?), None),
+            _ => (None, None),
         };
         let mut builder = OutgoingBuilder::anisotropic_by_name(
             "chi2",

@@ -26,10 +26,10 @@
 //! wo outside the arc has the signs of its x and y flipped into it, is
 //! drawn from there and its draw flipped back, and its density is the
 //! arc's at the flipped pair (exact: a flip of signs loses no bits). On
-//! the GGX lobe of the `anisotropic_rgl` example at the storage cap, both
-//! mirrors keep 41 slices at the tolerance 0.068 where the whole circle
-//! kept 65 at 0.126, and the relative variance falls from 0.253 to 0.151
-//! (`docs/results.md`).
+//! the GGX lobe of the `anisotropic_rgl` example at the storage cap, the
+//! quarter circle keeps 41 slices at the tolerance 0.068 (relative
+//! variance 0.151) where the whole circle keeps 65 at 0.126 (0.253;
+//! `docs/results.md`).
 //!
 //! **Building.** The material is tabulated at `fine` θ_o nodes
 //! u_j = j / (fine - 1) (θ_o = (π/2) u_j², as in the isotropic sampler)
