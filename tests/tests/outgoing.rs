@@ -6,15 +6,21 @@
 //! one of its breakpoints and halfway to the next. The anisotropic
 //! outgoing sampler at 16x8x128x32 (32 θ_o × 16 φ_o fine nodes) on the
 //! battery's anisotropic GGX lobe, with wo on the normal, at a θ_o
-//! breakpoint, halfway to the next and next to the horizon, just below
-//! the φ_o seam at 2π.
+//! breakpoint, halfway to the next and next to the horizon: with the
+//! lobe's mirror symmetries (its slices cover φ_o from 0 to π/2) in the
+//! fourth quadrant, just below 2π, and in the second and third (mirrored
+//! into the arc), and round the whole circle just below its seam at 2π.
+//! At the default resolution (64 θ_o × 32 φ_o fine nodes, 256 x 32
+//! cells) the anisotropic sampler keeps within its storage cap on GGX
+//! lobes of three roughness pairs.
 
 use acdf_conformance::brdfs::GgxBrdf;
 use acdf_conformance::{check_sampler_family, sampler_battery, SamplerConfig};
+use acdf_core::BxdfSampler;
 use acdf_core::{Brdf, Rgb};
-use acdf_outgoing::anisotropic::{ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
-use acdf_outgoing::FINE_PER_CELL;
+use acdf_outgoing::anisotropic::{Symmetry, ANISOTROPIC_FINE_PER_CELL, FINE_PHI_PER_CELL};
 use acdf_outgoing::{AnisotropicOutgoingSampler, OutgoingBuilder, OutgoingSampler};
+use acdf_outgoing::{DEFAULT_MAX_BYTES, FINE_PER_CELL};
 use acdf_tabulated::Resolution;
 use std::sync::Arc;
 
@@ -80,11 +86,22 @@ fn ggx() -> Arc<dyn Brdf> {
     })
 }
 
-fn anisotropic(brdf: Arc<dyn Brdf>) -> acdf_core::Result<AnisotropicOutgoingSampler> {
+/// The anisotropic sampler at 16x8x128x32 with the symmetry given
+/// (`None`: found).
+fn anisotropic_with(
+    brdf: Arc<dyn Brdf>,
+    symmetry: Option<Symmetry>,
+) -> acdf_core::Result<AnisotropicOutgoingSampler> {
     let r: Resolution = "16x8x128x32".parse().expect("a resolution");
     let builder =
         OutgoingBuilder::anisotropic_by_name("chi2", None, r.theta_o * ANISOTROPIC_FINE_PER_CELL)?;
-    AnisotropicOutgoingSampler::new(brdf, r, builder, r.phi_o * FINE_PHI_PER_CELL)
+    AnisotropicOutgoingSampler::with_symmetry(
+        brdf,
+        r,
+        builder,
+        r.phi_o * FINE_PHI_PER_CELL,
+        symmetry,
+    )
 }
 
 fn anisotropic_config(wo_theta_degrees: Vec<f32>, wo_phi: f32) -> SamplerConfig {
@@ -96,12 +113,36 @@ fn anisotropic_config(wo_theta_degrees: Vec<f32>, wo_phi: f32) -> SamplerConfig 
 
 /// On the normal, exactly at a θ_o breakpoint (its row of slices has all
 /// the θ_o weight), halfway to the next and next to the horizon, all just
-/// below the φ_o seam at 2π (the last φ_o interval, which blends the last
-/// φ_o breakpoint with the first). One test, so that the lobe's tables are
-/// built once per battery pass.
+/// below φ_o = 2π: with the lobe's mirrors, a wo mirrored into the arc's
+/// first interval; round the whole circle, the last φ_o interval, which
+/// blends the last φ_o breakpoint with the first. One test per case, so
+/// that the lobe's tables are built once per battery pass.
 #[test]
 fn chi2_outgoing_anisotropic() {
-    let built = anisotropic(ggx()).expect("the lobe builds");
+    check_anisotropic(None, std::f32::consts::TAU - 1e-3);
+}
+
+/// As [`chi2_outgoing_anisotropic`] round the whole circle, across its
+/// seam.
+#[test]
+fn chi2_outgoing_anisotropic_whole_circle() {
+    check_anisotropic(Some(Symmetry::None), std::f32::consts::TAU - 1e-3);
+}
+
+/// As [`chi2_outgoing_anisotropic`] in the second and third quadrants
+/// (x mirrored, then both), between the arc's breakpoints.
+#[test]
+fn chi2_outgoing_anisotropic_mirrored_quadrants() {
+    check_anisotropic(None, 2.0);
+    check_anisotropic(None, 4.0);
+}
+
+/// The battery at the wo of [`chi2_outgoing_anisotropic`], at azimuth
+/// `wo_phi`, with the symmetry given (`None`: found, both mirrors).
+fn check_anisotropic(symmetry: Option<Symmetry>, wo_phi: f32) {
+    let built = anisotropic_with(ggx(), symmetry).expect("the lobe builds");
+    let expected = symmetry.unwrap_or(Symmetry::MirrorXY);
+    assert_eq!(built.symmetry(), expected);
     let theta = built.theta_breakpoint_angles();
     assert!(theta.len() >= 3, "{theta:?}");
     let k = theta.len() / 2;
@@ -109,10 +150,41 @@ fn chi2_outgoing_anisotropic() {
     let between = (0.5 * (theta[k] + theta[k + 1])).to_degrees();
     let report = check_sampler_family(
         "chi2_outgoing_anisotropic",
-        anisotropic,
+        |b| anisotropic_with(b, symmetry),
         &[ggx()],
-        &anisotropic_config(vec![0.0, at, between, 89.5], std::f32::consts::TAU - 1e-3),
+        &anisotropic_config(vec![0.0, at, between, 89.5], wo_phi),
     );
     report.print();
     assert!(report.passed(), "{report}");
+}
+
+/// At the default tolerance and the registry's resolution for an
+/// anisotropic material (32x16x256x32: 64 θ_o × 32 φ_o fine nodes), the
+/// anisotropic sampler keeps within [`DEFAULT_MAX_BYTES`] on the GGX lobe
+/// of the `anisotropic_rgl` example (α 0.1 × 0.3) and two other roughness
+/// pairs, using both mirrors.
+#[test]
+fn anisotropic_default_keeps_within_the_storage_cap() {
+    let r: Resolution = "32x16x256x32".parse().expect("a resolution");
+    for (alpha_x, alpha_y) in [(0.1, 0.3), (0.05, 0.2), (0.3, 0.6)] {
+        let brdf = Arc::new(GgxBrdf {
+            alpha_x,
+            alpha_y,
+            color: Rgb::splat(0.8),
+        });
+        let builder = OutgoingBuilder::anisotropic_by_name(
+            "chi2",
+            None,
+            r.theta_o * ANISOTROPIC_FINE_PER_CELL,
+        )
+        .expect("the default builder");
+        let s = AnisotropicOutgoingSampler::new(brdf, r, builder, r.phi_o * FINE_PHI_PER_CELL)
+            .expect("the lobe builds");
+        assert_eq!(s.symmetry(), Symmetry::MirrorXY);
+        assert!(
+            s.storage_bytes() <= DEFAULT_MAX_BYTES,
+            "α {alpha_x} x {alpha_y}: {} bytes",
+            s.storage_bytes()
+        );
+    }
 }

@@ -4,12 +4,12 @@
 //! anisotropic RGL file).
 //!
 //! ```sh
-//! cargo run -p acdf --release --example anisotropic_rgl -- target/aniso-ggx.bsdf
+//! cargo run -p acdf --release --example anisotropic_rgl -- target/aniso-ggx.bsdf [ALPHA_X ALPHA_Y]
 //! acdf report --material target/aniso-ggx.bsdf --sampler outgoing:chi2 ...
 //! ```
 //!
-//! The file's NDF is D(m) of GGX with roughness α_x = 0.1 along x and
-//! α_y = 0.3 along y, tabulated over absolute (u_θ, u_φ) on 64 × 64 points;
+//! The file's NDF is D(m) of GGX with roughness α_x (0.1 unless given)
+//! along x and α_y (0.3 unless given) along y, tabulated over absolute (u_θ, u_φ) on 64 × 64 points;
 //! σ(ω) = ∫ D(m) max(0, ω·m) dω_m (the projected area, by the midpoint rule
 //! on 512 × 512 cells of m) on 16 × 16 points of (u_θ, u_φ) of ω; the
 //! visible-normal density and the luminance are uniform and the RGB a
@@ -20,15 +20,13 @@
 use acdf_materials::rgl::{write_tensor_file, Dtype, TensorFile};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
-const ALPHA_X: f64 = 0.1;
-const ALPHA_Y: f64 = 0.3;
-
-/// The GGX density of normals at (θ, φ), per solid angle.
-fn ggx(theta: f64, phi: f64) -> f64 {
+/// The GGX density of normals of roughness (α_x, α_y) at (θ, φ), per
+/// solid angle.
+fn ggx((alpha_x, alpha_y): (f64, f64), theta: f64, phi: f64) -> f64 {
     let (s, c) = theta.sin_cos();
-    let k = (phi.cos() / ALPHA_X).powi(2) + (phi.sin() / ALPHA_Y).powi(2);
+    let k = (phi.cos() / alpha_x).powi(2) + (phi.sin() / alpha_y).powi(2);
     let q = c * c + s * s * k;
-    1.0 / (PI * ALPHA_X * ALPHA_Y * q * q)
+    1.0 / (PI * alpha_x * alpha_y * q * q)
 }
 
 /// (θ, φ) of square coordinates u_θ = sqrt(2θ/π), u_φ = (φ + π) / 2π.
@@ -41,15 +39,22 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
 }
 
 fn main() {
-    let path = std::env::args()
-        .nth(1)
+    let args: Vec<String> = std::env::args().collect();
+    let path = args
+        .get(1)
+        .cloned()
         .unwrap_or_else(|| "aniso-ggx.bsdf".to_string());
+    let alpha = |i: usize, default: f64| {
+        args.get(i)
+            .map_or(default, |a| a.parse().expect("a roughness"))
+    };
+    let alphas = (alpha(2, 0.1), alpha(3, 0.3));
     let n = 64;
     let mut ndf = Vec::with_capacity(n * n);
     for j in 0..n {
         for i in 0..n {
             let (t, p) = angles(i as f64 / (n - 1) as f64, j as f64 / (n - 1) as f64);
-            ndf.push(ggx(t, p) as f32);
+            ndf.push(ggx(alphas, t, p) as f32);
         }
     }
     // σ(ω) by the midpoint rule over m: 512 cells in cos θ_m, 512 in φ_m.
@@ -60,7 +65,7 @@ fn main() {
             let phi = TAU * ((k % mp) as f64 + 0.5) / mp as f64;
             let sin = (1.0 - cos * cos).sqrt();
             let m = [sin * phi.cos(), sin * phi.sin(), cos];
-            (m, ggx(cos.acos(), phi) * TAU / (mc * mp) as f64)
+            (m, ggx(alphas, cos.acos(), phi) * TAU / (mc * mp) as f64)
         })
         .collect();
     let ns = 16;

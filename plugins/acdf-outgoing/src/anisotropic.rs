@@ -15,6 +15,22 @@
 //! the one whose breakpoints keep fewer slices at the budget; an isotropic
 //! one is tabulated from φ_o only (one φ_o breakpoint, the fewest).
 //!
+//! **Symmetry.** A material that is the same under a mirror of the
+//! tangent plane (or the turn by π) has, at the mirrored wo, the mirrored
+//! table, so slices over an arc of φ_o serve the whole circle
+//! ([`symmetry`]): both mirrors x → −x and y → −y (an anisotropic density
+//! of normals aligned with the axes) leave a quarter of the circle, one of
+//! them or the turn by π half. The builder takes the largest symmetry the
+//! fine tables have within the budget (each table against its partner's,
+//! carried over), and breakpoints are chosen on the arc's nodes only; a
+//! wo outside the arc has the signs of its x and y flipped into it, is
+//! drawn from there and its draw flipped back, and its density is the
+//! arc's at the flipped pair (exact: a flip of signs loses no bits). On
+//! the GGX lobe of the `anisotropic_rgl` example at the storage cap, the
+//! quarter circle keeps 41 slices at the tolerance 0.068 (relative
+//! variance 0.151) where the whole circle keeps 65 at 0.126 (0.253;
+//! `docs/results.md`).
+//!
 //! **Building.** The material is tabulated at `fine` θ_o nodes
 //! u_j = j / (fine - 1) (θ_o = (π/2) u_j², as in the isotropic sampler)
 //! times `fine_phi` φ_o nodes φ_l = 2π l / fine_phi, with [`tabulate_for`]
@@ -25,7 +41,9 @@
 //! `budget` of chi-square divergence. Then each kept θ_o row gets φ_o
 //! breakpoints of its own, the same way along its fine φ_o nodes, from
 //! φ_o = 0 round to 2π (the node at 2π is the one at 0, so the last
-//! interval wraps across the seam). A row keeps what its own θ_o needs:
+//! interval wraps across the seam), or over the arc of the symmetry from
+//! its start to its end, both kept (a row whose nodes all lie within the
+//! budget of its first keeps that one alone). A row keeps what its own θ_o needs:
 //! on the normal one breakpoint, since φ_o is then undefined; towards the
 //! horizon, where the cut-off wi.z = 0 moves through the lobe as φ_o
 //! turns, more. (One set for every row, a tensor grid, would give every
@@ -41,7 +59,8 @@
 //! **Sampling.** For wo between θ_o rows k, k + 1 (weight t of the second,
 //! linear in u_o), and in each row r of the two between its φ_o
 //! breakpoints m_r, m_r + 1 (weight s_r, linear in φ_o, m_r + 1 taken
-//! modulo the row's count), slice (k, m_k) is drawn from with probability
+//! modulo the row's count on the circle; on an arc the last interval ends
+//! at the arc's end), slice (k, m_k) is drawn from with probability
 //! (1 - t)(1 - s_k), (k, m_k + 1) with (1 - t) s_k, (k + 1, m_{k+1}) with
 //! t (1 - s_{k+1}) and (k + 1, m_{k+1} + 1) with t s_{k+1} (u.x decides and
 //! is rescaled). The density is the same mixture of the four slices'
@@ -53,21 +72,25 @@
 //!
 //! **Storage** counts every byte kept: the breakpoints (f32), a count per
 //! θ_o row, and each slice's arrays. Under a cap
-//! ([`OutgoingBuilder::max_bytes`]) the tolerance and the budget grow
-//! together by [`CAP_STEP`] until the sampler fits (at
-//! most 7 times), judged first on an estimate that skips the support
-//! passes (the fine tables at the kept nodes, simplified), then on builds;
-//! once raised, they come back by one [`FILL_STEP`]
-//! when the sampler still fits there.
+//! ([`OutgoingBuilder::max_bytes`]) the tolerance and the budget move
+//! together on a ladder of steps of [`FILL_STEP`] (√1.5), from 12 steps
+//! below the default to 14 above (1.5^7), to the smallest that fits:
+//! judged first on an estimate that skips the support passes (the fine
+//! tables at the kept nodes, simplified), then on builds, a step up at a
+//! time while a build is over the cap. Where the default has room, the
+//! room is spent on variance.
 
 // `!(x > 0.0)` is how this module says "not positive, or NaN".
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod persist;
+pub mod symmetry;
+
+pub use symmetry::Symmetry;
 
 use super::{
     blend_divergence, coordinates, half_vector, outgoing_at, served_between, OutgoingBuilder,
-    PackedCdf2D, CAP_STEP, CAP_TRIES, FILL_STEP,
+    PackedCdf2D, CAP_TRIES, FILL_STEP,
 };
 use acdf_adaptive_cdf::AdaptiveCdf2D;
 use acdf_core::fast::{fast_atan2, sin_cos_turns};
@@ -215,6 +238,7 @@ pub struct AnisotropicOutgoingSampler {
     builder: OutgoingBuilder,
     fine_phi: usize,
     frame: PhiFrame,
+    symmetry: Symmetry,
     name: String,
     n_theta_h: usize,
     n_phi_h: usize,
@@ -222,7 +246,8 @@ pub struct AnisotropicOutgoingSampler {
     /// u_o of each kept θ_o slice row: 0 first, 1 last, increasing.
     pub(crate) theta_breakpoints: Vec<f32>,
     /// For each θ_o row, φ_o / 2π of its φ_o breakpoints: 0 first,
-    /// increasing, below 1.
+    /// increasing, below 1 on the periodic circle, ending at the arc's end
+    /// on an arc of a [`Symmetry`] (unless the row keeps one).
     pub(crate) phi_breakpoints: Vec<Vec<f32>>,
     /// Where each θ_o row's slices start in `slices` (one more entry than
     /// rows, the last the slice count).
@@ -249,6 +274,71 @@ struct Built {
     bytes: usize,
 }
 
+/// A slice's table simplified at the builder's tolerance (first θ_h row
+/// pinned) and packed.
+fn simplified(
+    values: &[f32],
+    (n_theta_h, n_phi_h): (usize, usize),
+    builder: &OutgoingBuilder,
+) -> Result<PackedCdf2D> {
+    let d = AdaptiveCdf2D::from_values_pinned(
+        values,
+        n_phi_h,
+        n_theta_h,
+        &*builder.simplifier,
+        builder.tolerance,
+        1,
+    )?;
+    PackedCdf2D::from_adaptive(&d, values, n_phi_h, n_theta_h)
+}
+
+/// The builder with its tolerance and budget times [`FILL_STEP`]^k.
+fn scaled(builder: &OutgoingBuilder, k: i32) -> OutgoingBuilder {
+    let mut b = builder.clone();
+    let f = FILL_STEP.powi(k);
+    b.tolerance *= f;
+    b.budget *= f;
+    b
+}
+
+/// The most steps of [`FILL_STEP`] a capped build lowers the tolerance and
+/// budget by (FILL_STEP^-12 = 1.5^-6, about 0.09 times the default, so
+/// about half the simplifier's own default tolerance).
+pub const LOWER_STEPS: i32 = 12;
+
+/// The build under the storage cap `cap`: the smallest tolerance (and the
+/// budget with it) on the ladder builder · [`FILL_STEP`]^k, k from
+/// -[`LOWER_STEPS`] to 2 ([`CAP_TRIES`] - 1) (up to [`CAP_STEP`](crate::CAP_STEP)^7), whose
+/// sampler fits, spending the room on variance. The rung is found on
+/// `estimate` (no support passes, a little below what a build stores),
+/// then built, and raised a rung at a time while the build is over the
+/// cap (the highest rung is taken whatever it stores).
+fn fit_under_cap(
+    builder: OutgoingBuilder,
+    cap: usize,
+    estimate: impl Fn(&OutgoingBuilder) -> Result<usize>,
+    mut build: impl FnMut(&OutgoingBuilder) -> Result<Built>,
+) -> Result<(OutgoingBuilder, Built)> {
+    let highest = 2 * (CAP_TRIES as i32 - 1);
+    let fits = |k: i32| -> Result<bool> { Ok(estimate(&scaled(&builder, k))? <= cap) };
+    let mut k = 0;
+    if fits(0)? {
+        while k > -LOWER_STEPS && fits(k - 1)? {
+            k -= 1;
+        }
+    } else {
+        while k < highest && !fits(k)? {
+            k += 1;
+        }
+    }
+    let mut built = build(&scaled(&builder, k))?;
+    while built.bytes > cap && k < highest {
+        k += 1;
+        built = build(&scaled(&builder, k))?;
+    }
+    Ok((scaled(&builder, k), built))
+}
+
 /// Greedy breakpoints along an axis of `n` nodes (indices into them), from
 /// node 0: from a kept node a the next is the farthest b for which
 /// `fits(a, b)`; the last kept node is `n - 1` (for a periodic axis the
@@ -269,11 +359,16 @@ fn greedy(n: usize, fits: impl Fn(usize, usize) -> bool) -> Vec<usize> {
 
 /// The θ_o breakpoints for normalised tables `p` (θ_o node j, φ_o node l
 /// at j · n_phi + l) at nodes `u`: every dropped node of every φ_o column
-/// within `budget` of the blend of its kept neighbours.
-fn choose_theta_breakpoints(p: &[Vec<f32>], u: &[f32], n_phi: usize, budget: f64) -> Vec<usize> {
+/// of `cols` within `budget` of the blend of its kept neighbours.
+fn choose_theta_breakpoints(
+    p: &[Vec<f32>],
+    u: &[f32],
+    (n_phi, cols): (usize, &[usize]),
+    budget: f64,
+) -> Vec<usize> {
     greedy(u.len(), |a, b| {
         ((a + 1)..b)
-            .flat_map(|j| (0..n_phi).map(move |l| (j, l)))
+            .flat_map(|j| cols.iter().map(move |&l| (j, l)))
             .collect::<Vec<_>>()
             .into_par_iter()
             .all(|(j, l)| {
@@ -284,51 +379,79 @@ fn choose_theta_breakpoints(p: &[Vec<f32>], u: &[f32], n_phi: usize, budget: f64
     })
 }
 
-/// The φ_o breakpoints (node indices, 0 first) of one θ_o row, whose
-/// normalised tables at the `row.len()` fine φ_o nodes are `row`: every
-/// dropped node within `budget` of the blend of its kept neighbours, round
-/// the circle (node `row.len()` is node 0).
-fn choose_phi_breakpoints(row: &[Vec<f32>], budget: f64) -> Vec<usize> {
+/// The φ_o breakpoints (indices into `row`, 0 first) of one θ_o row,
+/// whose normalised tables at its φ_o nodes in order are `row`: every
+/// dropped node within `budget` of the blend of its kept neighbours. Round
+/// the circle when `periodic` (node `row.len()` is node 0); on an arc the
+/// last node is kept too, unless every node is within `budget` of the
+/// first alone (the row on the normal), which is then kept alone.
+fn choose_phi_breakpoints(row: &[&[f32]], periodic: bool, budget: f64) -> Vec<usize> {
     let n_phi = row.len();
-    let mut kept = greedy(n_phi + 1, |a, b| {
+    if periodic {
+        let mut kept = greedy(n_phi + 1, |a, b| {
+            ((a + 1)..b).into_par_iter().all(|l| {
+                let s = (l - a) as f32 / (b - a) as f32;
+                blend_divergence(row[l], row[a], row[b % n_phi], s) <= budget
+            })
+        });
+        kept.pop();
+        return kept;
+    }
+    if row
+        .par_iter()
+        .all(|t| blend_divergence(t, row[0], row[0], 0.0) <= budget)
+    {
+        return vec![0];
+    }
+    greedy(n_phi, |a, b| {
         ((a + 1)..b).into_par_iter().all(|l| {
             let s = (l - a) as f32 / (b - a) as f32;
-            blend_divergence(&row[l], &row[a], &row[b % n_phi], s) <= budget
+            blend_divergence(row[l], row[a], row[b], s) <= budget
         })
-    });
-    kept.pop();
-    kept
+    })
 }
 
 /// The kept nodes of the normalised tables `p` (θ_o node j at `u[j]`, φ_o
-/// node l at j · n_phi + l) at `budget`: the θ_o breakpoints (fine node
-/// indices), and for each the φ_o breakpoints of its row.
+/// node l at j · n_phi + l) at `budget`, over the φ_o nodes `cols` of the
+/// arc of `symmetry`: the θ_o breakpoints (fine node indices), and for
+/// each the φ_o breakpoints of its row (fine φ_o node indices).
 fn kept_nodes(
     p: &[Vec<f32>],
     u: &[f32],
-    n_phi: usize,
+    (n_phi, symmetry): (usize, Symmetry),
     budget: f64,
 ) -> (Vec<usize>, Vec<Vec<usize>>) {
-    let kept_theta = choose_theta_breakpoints(p, u, n_phi, budget);
+    let cols = symmetry.arc_nodes(n_phi);
+    let kept_theta = choose_theta_breakpoints(p, u, (n_phi, &cols), budget);
     let kept_phi = kept_theta
         .iter()
-        .map(|&j| choose_phi_breakpoints(&p[j * n_phi..(j + 1) * n_phi], budget))
+        .map(|&j| {
+            let row: Vec<&[f32]> = cols.iter().map(|&l| &p[j * n_phi + l][..]).collect();
+            choose_phi_breakpoints(&row, symmetry.is_periodic(), budget)
+                .into_iter()
+                .map(|m| cols[m])
+                .collect()
+        })
         .collect();
     (kept_theta, kept_phi)
 }
 
-/// The outgoing directions at φ_o = 0 and the φ_o (in turns) that stand
-/// for the slice at φ_o node m of `phi` (in turns) in its support pass:
-/// from the previous φ_o breakpoint to the next (the whole circle for one
-/// breakpoint), in steps of at most [`SERVED_PHI_STEP`], both ends included.
-fn served_phi(phi: &[f32], m: usize) -> Vec<f32> {
+/// The φ_o (in turns) that stand for the slice at φ_o node m of `phi` (in
+/// turns) in its support pass: from the previous φ_o breakpoint to the
+/// next (the whole circle, or the whole arc of `span` turns, for one
+/// breakpoint; on an arc, from its start for the first and to its end for
+/// the last), in steps of at most [`SERVED_PHI_STEP`], both ends included.
+fn served_phi(phi: &[f32], m: usize, symmetry: Symmetry) -> Vec<f32> {
     let k = phi.len();
+    let span = symmetry.span();
     let (lo, hi) = if k == 1 {
-        (0.0, 1.0)
-    } else {
+        (0.0, span)
+    } else if symmetry.is_periodic() {
         let prev = if m == 0 { phi[k - 1] - 1.0 } else { phi[m - 1] };
         let next = if m + 1 == k { 1.0 } else { phi[m + 1] };
         (prev, next)
+    } else {
+        (phi[m.saturating_sub(1)], phi[(m + 1).min(k - 1)])
     };
     let steps = (((hi - lo) / SERVED_PHI_STEP).ceil() as usize).max(1);
     (0..=steps)
@@ -439,9 +562,38 @@ impl AnisotropicOutgoingSampler {
         builder: OutgoingBuilder,
         fine_phi: usize,
     ) -> Result<Self> {
+        Self::with_symmetry(brdf, resolution, builder, fine_phi, None)
+    }
+
+    /// [`new`](Self::new) with the φ_o arc given: `None` finds the largest
+    /// [`Symmetry`] the material's fine tables have within the budget (as
+    /// `new` does), `Some(s)` takes `s` (a symmetry the material lacks
+    /// still gives an exact density, of more variance). Errors: those of
+    /// `new`, and a symmetry whose arc does not end on a fine φ_o node (1/2
+    /// turn needs an even `fine_phi` and `resolution.phi_h`, 1/4 turn a
+    /// `fine_phi` divisible by 4).
+    pub fn with_symmetry(
+        brdf: Arc<dyn Brdf>,
+        resolution: Resolution,
+        builder: OutgoingBuilder,
+        fine_phi: usize,
+        symmetry: Option<Symmetry>,
+    ) -> Result<Self> {
         resolution.validate()?;
         builder.validate()?;
         validate_fine_phi(fine_phi)?;
+        if let Some(s) = symmetry {
+            if !s.fits_grid(fine_phi, resolution.phi_h) {
+                return Err(Error::InvalidParameter {
+                    name: "symmetry",
+                    reason: format!(
+                        "{s:?} needs fine phi_o nodes and phi_h cells that split its arc \
+                         evenly ({fine_phi} nodes, {} cells)",
+                        resolution.phi_h
+                    ),
+                });
+            }
+        }
         if brdf.is_zero_everywhere() {
             return Err(Error::ZeroMaterial {
                 material: brdf.name().to_string(),
@@ -472,7 +624,7 @@ impl AnisotropicOutgoingSampler {
                 .collect()
         };
         let kept_count = |p: &[Vec<f32>]| {
-            kept_nodes(p, &u, fine_phi, builder.budget)
+            kept_nodes(p, &u, (fine_phi, Symmetry::None), builder.budget)
                 .1
                 .iter()
                 .map(Vec::len)
@@ -492,13 +644,21 @@ impl AnisotropicOutgoingSampler {
                 (PhiFrame::Relative, relative)
             }
         };
+        // An isotropic material needs no arc: its one φ_o breakpoint per
+        // row serves the circle.
+        let symmetry = match symmetry {
+            Some(s) => s,
+            None if brdf.is_isotropic() => Symmetry::None,
+            None => symmetry::detect(&normalised, fine_phi, n_phi_h, frame, builder.budget),
+        };
+        let nodes = (fine_phi, symmetry);
         // The kept slices' tables (with their support passes) depend only on
         // the fine nodes of the slice and of its neighbours, so another
         // tolerance under the storage cap rebuilds only the slices whose
         // neighbourhood changed.
         let mut tables: HashMap<SliceKey, Vec<f32>> = HashMap::new();
         let mut build = |builder: &OutgoingBuilder| -> Result<Built> {
-            let (kept_theta, kept_phi) = kept_nodes(&normalised, &u, fine_phi, builder.budget);
+            let (kept_theta, kept_phi) = kept_nodes(&normalised, &u, nodes, builder.budget);
             let phi_kept: Vec<Vec<f32>> = kept_phi
                 .iter()
                 .map(|row| row.iter().map(|&l| phi[l]).collect())
@@ -528,7 +688,7 @@ impl AnisotropicOutgoingSampler {
                         frame,
                         (u[kept_theta[i]], lo, hi),
                         phi_kept[i][m],
-                        &served_phi(&phi_kept[i], m),
+                        &served_phi(&phi_kept[i], m, symmetry),
                         (n_theta_h, n_phi_h),
                     );
                     (key, values)
@@ -537,18 +697,7 @@ impl AnisotropicOutgoingSampler {
             tables.extend(built);
             let slices = keys
                 .par_iter()
-                .map(|key| {
-                    let values = &tables[key];
-                    let d = AdaptiveCdf2D::from_values_pinned(
-                        values,
-                        n_phi_h,
-                        n_theta_h,
-                        &*builder.simplifier,
-                        builder.tolerance,
-                        1,
-                    )?;
-                    PackedCdf2D::from_adaptive(&d, values, n_phi_h, n_theta_h)
-                })
+                .map(|key| simplified(&tables[key], (n_theta_h, n_phi_h), builder))
                 .collect::<Result<Vec<_>>>()?;
             let bytes = stored_bytes(kept_theta.len(), &slices);
             Ok(Built {
@@ -562,69 +711,28 @@ impl AnisotropicOutgoingSampler {
         // the nodes it keeps, without the support passes (which only give
         // mass to cells a slice's own table has none in, so that the
         // estimate comes out a little below what the build stores: 10 to
-        // 12% on the GGX lobe of the `anisotropic_rgl` example): a tolerance whose
-        // estimate is over the cap is raised without a build, whose support
-        // passes take most of the time.
+        // 12% on the GGX lobe of the `anisotropic_rgl` example): a tolerance
+        // whose estimate is over the cap is passed over without a build,
+        // whose support passes take most of the time.
         let estimate = |builder: &OutgoingBuilder| -> Result<usize> {
-            let (kept_theta, kept_phi) = kept_nodes(&normalised, &u, fine_phi, builder.budget);
-            let nodes: Vec<usize> = kept_theta
+            let (kept_theta, kept_phi) = kept_nodes(&normalised, &u, nodes, builder.budget);
+            let slices = kept_theta
                 .iter()
                 .zip(&kept_phi)
                 .flat_map(|(&j, row)| row.iter().map(move |&l| j * fine_phi + l))
-                .collect();
-            let slices = nodes
+                .collect::<Vec<usize>>()
                 .par_iter()
-                .map(|&i| {
-                    let d = AdaptiveCdf2D::from_values_pinned(
-                        &normalised[i],
-                        n_phi_h,
-                        n_theta_h,
-                        &*builder.simplifier,
-                        builder.tolerance,
-                        1,
-                    )?;
-                    PackedCdf2D::from_adaptive(&d, &normalised[i], n_phi_h, n_theta_h)
-                })
+                .map(|&i| simplified(&normalised[i], (n_theta_h, n_phi_h), builder))
                 .collect::<Result<Vec<_>>>()?;
             Ok(stored_bytes(kept_theta.len(), &slices))
         };
-        let mut builder = builder;
-        let mut tries = 1;
-        let mut raised = false;
-        if let Some(cap) = builder.max_bytes {
-            while tries < CAP_TRIES && estimate(&builder)? > cap {
-                builder.tolerance *= CAP_STEP;
-                builder.budget *= CAP_STEP;
-                tries += 1;
-                raised = true;
+        let (builder, built) = match builder.max_bytes {
+            None => {
+                let built = build(&builder)?;
+                (builder, built)
             }
-        }
-        let mut built = build(&builder)?;
-        if let Some(cap) = builder.max_bytes {
-            // Over the cap: the tolerance and the budget grow together by
-            // CAP_STEP until the sampler fits (or CAP_TRIES tolerances are
-            // spent).
-            while tries < CAP_TRIES && built.bytes > cap {
-                builder.tolerance *= CAP_STEP;
-                builder.budget *= CAP_STEP;
-                built = build(&builder)?;
-                tries += 1;
-                raised = true;
-            }
-            // Raised until it fits: one step of FILL_STEP back (half a
-            // CAP_STEP) when that still fits, spending the room on variance.
-            if raised && built.bytes <= cap {
-                let mut finer = builder.clone();
-                finer.tolerance /= FILL_STEP;
-                finer.budget /= FILL_STEP;
-                if estimate(&finer)? <= cap {
-                    let candidate = build(&finer)?;
-                    if candidate.bytes <= cap {
-                        (builder, built) = (finer, candidate);
-                    }
-                }
-            }
-        }
+            Some(cap) => fit_under_cap(builder, cap, estimate, build)?,
+        };
         let Built {
             kept_theta,
             phi: kept_phi,
@@ -635,7 +743,7 @@ impl AnisotropicOutgoingSampler {
         Ok(Self::from_parts(
             brdf,
             builder,
-            (fine_phi, frame),
+            (fine_phi, frame, symmetry),
             (n_theta_h, n_phi_h),
             theta_breakpoints,
             kept_phi,
@@ -647,7 +755,7 @@ impl AnisotropicOutgoingSampler {
     pub(crate) fn from_parts(
         brdf: Arc<dyn Brdf>,
         builder: OutgoingBuilder,
-        (fine_phi, frame): (usize, PhiFrame),
+        (fine_phi, frame, symmetry): (usize, PhiFrame, Symmetry),
         (n_theta_h, n_phi_h): (usize, usize),
         theta_breakpoints: Vec<f32>,
         phi_breakpoints: Vec<Vec<f32>>,
@@ -664,6 +772,7 @@ impl AnisotropicOutgoingSampler {
             builder,
             fine_phi,
             frame,
+            symmetry,
             n_theta_h,
             n_phi_h,
             map: HalfMap::new(n_theta_h),
@@ -700,6 +809,11 @@ impl AnisotropicOutgoingSampler {
     /// The frame the slices measure φ_h in.
     pub fn frame(&self) -> PhiFrame {
         self.frame
+    }
+
+    /// The arc of φ_o the slices cover.
+    pub fn symmetry(&self) -> Symmetry {
+        self.symmetry
     }
 
     /// The number of fine φ_o nodes the breakpoints were chosen from.
@@ -793,17 +907,29 @@ impl AnisotropicOutgoingSampler {
     }
 
     /// In θ_o row k, the slices of the φ_o breakpoints m and m + 1 around
-    /// φ_o = 2π `turns` (m + 1 modulo the row's count) and the weight of
-    /// the second.
+    /// φ_o = 2π `turns` and the weight of the second: on the periodic
+    /// circle m + 1 modulo the row's count, on an arc the last interval
+    /// ends at the arc's last breakpoint (a row of one breakpoint has it
+    /// alone).
     #[inline]
     fn phi_blend(&self, k: usize, turns: f32) -> ([usize; 2], f32) {
         let p = &self.phi_breakpoints[k];
         let n = p.len();
-        let m = p[1..].iter().filter(|&&x| x <= turns).count();
-        let next = if m + 1 == n { 0 } else { m + 1 };
-        let hi = if m + 1 == n { 1.0 } else { p[m + 1] };
-        let s = ((turns - p[m]) / (hi - p[m])).clamp(0.0, 1.0);
         let start = self.row_start[k];
+        let (m, next, hi) = if self.symmetry.is_periodic() {
+            let m = p[1..].iter().filter(|&&x| x <= turns).count();
+            if m + 1 == n {
+                (m, 0, 1.0)
+            } else {
+                (m, m + 1, p[m + 1])
+            }
+        } else if n == 1 {
+            return ([start, start], 0.0);
+        } else {
+            let m = p[1..n - 1].iter().filter(|&&x| x <= turns).count();
+            (m, m + 1, p[m + 1])
+        };
+        let s = ((turns - p[m]) / (hi - p[m])).clamp(0.0, 1.0);
         ([start + m, start + next], s)
     }
 
@@ -884,6 +1010,13 @@ impl AnisotropicOutgoingSampler {
     }
 }
 
+/// `v` with its x and y times the signs (s_x, s_y) of a [`Symmetry`]:
+/// into its arc and, the same again, back.
+#[inline]
+fn flip(v: Vec3, (sx, sy): (f32, f32)) -> Vec3 {
+    Vec3::new(sx * v.x, sy * v.y, v.z)
+}
+
 /// Check a fine φ_o node count: 1 to 4096.
 fn validate_fine_phi(fine_phi: usize) -> Result<()> {
     if !(1..=4096).contains(&fine_phi) {
@@ -907,7 +1040,12 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
         if !is_valid_outgoing(wo) {
             return None;
         }
-        self.sample_in(&self.blend(wo), wo, u)
+        let signs = self.symmetry.signs(wo);
+        let wo = flip(wo, signs);
+        self.sample_in(&self.blend(wo), wo, u).map(|d| BxdfSample {
+            wi: flip(d.wi, signs),
+            pdf: d.pdf,
+        })
     }
 
     /// (1 - a) times the bilinearly blended table density plus
@@ -917,7 +1055,9 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
         if !is_valid_outgoing(wo) {
             return 0.0;
         }
-        self.pdf_in(&self.blend(wo), wo, wi)
+        let signs = self.symmetry.signs(wo);
+        let wo = flip(wo, signs);
+        self.pdf_in(&self.blend(wo), wo, flip(wi, signs))
     }
 
     /// `sample` for every u, with the blend and rotation of wo found once.
@@ -926,9 +1066,14 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
             out.iter_mut().zip(u).for_each(|(o, _)| *o = None);
             return;
         }
+        let signs = self.symmetry.signs(wo);
+        let wo = flip(wo, signs);
         let b = self.blend(wo);
         for (o, &u) in out.iter_mut().zip(u) {
-            *o = self.sample_in(&b, wo, u);
+            *o = self.sample_in(&b, wo, u).map(|d| BxdfSample {
+                wi: flip(d.wi, signs),
+                pdf: d.pdf,
+            });
         }
     }
 
@@ -938,9 +1083,11 @@ impl BxdfSampler for AnisotropicOutgoingSampler {
             out.iter_mut().zip(wi).for_each(|(o, _)| *o = 0.0);
             return;
         }
+        let signs = self.symmetry.signs(wo);
+        let wo = flip(wo, signs);
         let b = self.blend(wo);
         for (o, &wi) in out.iter_mut().zip(wi) {
-            *o = self.pdf_in(&b, wo, wi);
+            *o = self.pdf_in(&b, wo, flip(wi, signs));
         }
     }
 

@@ -8,19 +8,21 @@
 //! (u32, [`ANISOTROPIC_VERSION`]), the sampler name (`string`, e.g.
 //! `outgoing:chi2`), the simplifier name (`string`), its tolerance (f64),
 //! the breakpoint budget (f64), the fine θ_o and φ_o node counts (2 × u32),
-//! the frame of φ_h (u8: 0 from φ_o, 1 absolute; [`PhiFrame`]), the
-//! material name (`string`), whether it is isotropic (u8, 0 or 1), its
+//! the frame of φ_h (u8: 0 from φ_o, 1 absolute; [`PhiFrame`]), the arc
+//! of φ_o the slices cover (u8: 0 the circle, 1 the turn by π, 2 the
+//! mirror y → −y, 3 both mirrors; [`Symmetry`]), the material name (`string`), whether it is isotropic (u8, 0 or 1), its
 //! fingerprint (u64), the half-vector cells θ_h and φ_h (2 × u32), the
 //! cosine mixing fraction (f32), the θ_o breakpoints u_o (`f32 array`,
 //! increasing from 0 to 1), for each θ_o breakpoint its row's φ_o
-//! breakpoints in turns (`f32 array`, increasing from 0, below 1), then
+//! breakpoints in turns (`f32 array`, increasing from 0: below 1 on the
+//! circle; on an arc of s turns 0 alone or ending at s), then
 //! the slices row by row (θ_o breakpoint, then φ_o breakpoint of the row),
 //! each as in the isotropic layout: the
 //! marginal positions (u16), the marginal CDF values (u16), the
 //! conditional offsets (u16), the conditional positions (u8) and the
 //! conditional CDF values (u16), each array a u32 count and the values.
 
-use super::{AnisotropicOutgoingSampler, PhiFrame};
+use super::{AnisotropicOutgoingSampler, PhiFrame, Symmetry};
 use crate::persist::{invalid, read_slice, write_slice, KIND, OUTGOING_VERSION};
 use crate::OutgoingBuilder;
 use acdf_adaptive_cdf::simplify::simplifier_by_name;
@@ -33,9 +35,14 @@ use acdf_tabulated::Resolution;
 use std::path::Path;
 use std::sync::Arc;
 
-/// The layout version of the anisotropic body: 4, with φ_o breakpoints
-/// per θ_o row.
-pub const ANISOTROPIC_VERSION: u32 = 4;
+/// The layout version of the anisotropic body: 6, with φ_o breakpoints
+/// per θ_o row over the arc of a [`Symmetry`].
+pub const ANISOTROPIC_VERSION: u32 = 6;
+
+/// The layout before the arcs, φ_o breakpoints per θ_o row round the
+/// whole circle: recognised, so that its files are refused with the
+/// reason, and the sampler is built again.
+const CIRCLE_VERSION: u32 = 4;
 
 /// The earlier anisotropic layout, one set of φ_o breakpoints for every θ_o
 /// row: recognised, so that its files are refused with the reason, and
@@ -43,8 +50,11 @@ pub const ANISOTROPIC_VERSION: u32 = 4;
 const TENSOR_VERSION: u32 = 2;
 
 // The layouts of the kind must stay apart.
-const _: () =
-    assert!(ANISOTROPIC_VERSION != OUTGOING_VERSION && TENSOR_VERSION != OUTGOING_VERSION);
+const _: () = assert!(
+    ANISOTROPIC_VERSION != OUTGOING_VERSION
+        && TENSOR_VERSION != OUTGOING_VERSION
+        && CIRCLE_VERSION != OUTGOING_VERSION
+);
 
 /// Whether a sampler file of kind [`KIND`] holds the anisotropic layout
 /// (its envelope checked; an error for a file of another kind).
@@ -52,7 +62,7 @@ pub fn is_anisotropic(bytes: &[u8]) -> Result<bool, PersistError> {
     let mut r = ByteReader::new(open(bytes)?);
     r.kind(KIND)?;
     let version = r.u32("outgoing version")?;
-    Ok(version == ANISOTROPIC_VERSION || version == TENSOR_VERSION)
+    Ok([ANISOTROPIC_VERSION, CIRCLE_VERSION, TENSOR_VERSION].contains(&version))
 }
 
 impl AnisotropicOutgoingSampler {
@@ -69,6 +79,7 @@ impl AnisotropicOutgoingSampler {
         w.length(b.fine);
         w.length(self.fine_phi);
         w.u8(self.frame.code());
+        w.u8(self.symmetry.code());
         w.string(self.brdf.name());
         w.u8(self.brdf.is_isotropic() as u8);
         w.u64(self.brdf.fingerprint());
@@ -99,6 +110,8 @@ impl AnisotropicOutgoingSampler {
         if version != ANISOTROPIC_VERSION {
             let why = if version == TENSOR_VERSION {
                 " (layout 2 keeps one set of phi_o breakpoints for every theta_o row: build the sampler again)"
+            } else if version == CIRCLE_VERSION {
+                " (layout 4 has no phi_o symmetry: build the sampler again)"
             } else {
                 ""
             };
@@ -118,6 +131,9 @@ impl AnisotropicOutgoingSampler {
         let code = r.u8("phi_h frame")?;
         let frame = PhiFrame::from_code(code)
             .ok_or_else(|| invalid("phi_h frame", format!("{code} is not 0 or 1")))?;
+        let code = r.u8("phi_o symmetry")?;
+        let symmetry = Symmetry::from_code(code)
+            .ok_or_else(|| invalid("phi_o symmetry", format!("{code} is not 0 to 3")))?;
         let builder = OutgoingBuilder {
             simplifier,
             max_bytes: None,
@@ -146,6 +162,14 @@ impl AnisotropicOutgoingSampler {
         let n_theta_h = r.u32("theta_h cells")? as usize;
         let n_phi_h = r.u32("phi_h cells")? as usize;
         Resolution::new(1, 1, n_theta_h, n_phi_h).map_err(PersistError::Table)?;
+        if !symmetry.fits_grid(fine_phi, n_phi_h) {
+            return Err(invalid(
+                "phi_o symmetry",
+                format!(
+                    "{symmetry:?} does not fit {fine_phi} phi_o nodes and {n_phi_h} phi_h cells"
+                ),
+            ));
+        }
         let cosine_mix = r.f32("cosine mix")?;
         let theta = r.f32_array("theta_o breakpoints")?;
         let n = theta.len();
@@ -163,14 +187,23 @@ impl AnisotropicOutgoingSampler {
         for _ in 0..n {
             let row = r.f32_array("phi_o breakpoints")?;
             let m = row.len();
-            if m == 0
-                || row[0] != 0.0
-                || !(row[m - 1] < 1.0)
-                || row.windows(2).any(|w| !(w[1] > w[0]))
-            {
+            let span = symmetry.span();
+            let ends = if symmetry.is_periodic() {
+                m > 0 && row[m - 1] < 1.0
+            } else {
+                m == 1 || (m > 1 && row[m - 1] == span)
+            };
+            if !ends || row[0] != 0.0 || row.windows(2).any(|w| !(w[1] > w[0])) {
                 return Err(invalid(
                     "phi_o breakpoints",
-                    "not increasing from 0 and below 1".into(),
+                    format!(
+                        "not increasing from 0 and {}",
+                        if symmetry.is_periodic() {
+                            "below 1".to_string()
+                        } else {
+                            format!("ending at {span}")
+                        }
+                    ),
                 ));
             }
             phi.push(row);
@@ -198,7 +231,7 @@ impl AnisotropicOutgoingSampler {
         AnisotropicOutgoingSampler::from_parts(
             brdf,
             builder,
-            (fine_phi, frame),
+            (fine_phi, frame, symmetry),
             (n_theta_h, n_phi_h),
             theta,
             phi,
