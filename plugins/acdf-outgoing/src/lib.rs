@@ -78,7 +78,9 @@ pub mod anisotropic;
 mod batch;
 pub mod persist;
 
-pub use acdf_adaptive_cdf::quantised::{GridCell, GridDraw, PackedCdf2D, SharedSlices};
+pub use acdf_adaptive_cdf::quantised::{
+    CompactSlices, GridCell, GridDraw, PackedCdf2D, SharedSlices, NO_CONDITIONAL,
+};
 pub use anisotropic::AnisotropicOutgoingSampler;
 
 use acdf_adaptive_cdf::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
