@@ -389,6 +389,30 @@ impl AdaptiveCdf2D {
         )
     }
 
+    /// [`from_values_pinned`](Self::from_values_pinned) with the marginal
+    /// and the conditionals simplified at tolerances of their own, where
+    /// the caller knows a better split than the simplifier's default (the
+    /// outgoing sampler's shared grid,
+    /// [`SHARED_MARGINAL_SHARE`](crate::quantised::SHARED_MARGINAL_SHARE)).
+    pub fn from_values_pinned_split(
+        values: &[f32],
+        n_x: usize,
+        n_y: usize,
+        simplifier: &dyn Simplifier,
+        (marginal, conditional): (f64, f64),
+        pinned_rows: usize,
+    ) -> Result<Self> {
+        Self::build(
+            values,
+            n_x,
+            n_y,
+            simplifier,
+            marginal,
+            conditional,
+            pinned_rows,
+        )
+    }
+
     /// Build: the marginal's vertices ([`marginal_vertices`]), the column
     /// sums of each marginal segment's rows ([`segment_columns`]), then each
     /// segment's simplified conditional ([`conditional_vertices`]).

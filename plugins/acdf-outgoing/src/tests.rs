@@ -737,9 +737,6 @@ fn hostile_files_are_typed_errors() {
         })),
         "slices"
     );
-    assert_eq!(
-        field_of(rebuilt(&|o, _| o[1] = o[0])),
-        "slices"
-    );
+    assert_eq!(field_of(rebuilt(&|o, _| o[1] = o[0])), "slices");
     assert!(OutgoingSampler::from_bytes(&rebuilt(&|_, _| {})).is_ok());
 }

@@ -20,6 +20,11 @@
 //! with mass lies in a segment of the grid with a conditional, and each
 //! slice's quantised masses keep every positive segment positive
 //! ([`quantise`]).
+//!
+//! A file stores the slices as [`CompactSlices`]: every curve without its
+//! two end vertices, which are always (0, 0) and (n, 65535), and a count of
+//! inner vertices per conditional in place of its 16-bit offset;
+//! [`SharedSlices::storage_bytes`] counts those bytes.
 
 use super::packed::{
     check_curve, check_offsets, conditional_masses, grid_indices, quantise, QuantisedSegment,
@@ -27,7 +32,7 @@ use super::packed::{
 };
 use crate::curve::Curve;
 use crate::packed_env::{row_sums, segment_masses};
-use crate::simplify::Simplifier;
+use crate::simplify::{ErrorBound, Simplifier};
 use crate::AdaptiveCdf2D;
 use acdf_core::search::count_one;
 #[cfg(target_arch = "x86_64")]
@@ -77,6 +82,20 @@ pub struct SharedSlices {
     longest_conditional: usize,
 }
 
+/// The share of a chi-square tolerance that the shared grid's marginal
+/// (θ_h) gets; its conditionals (φ_h) get the rest. A quarter, where a
+/// single table's simplification gives the marginal three quarters: the
+/// marginal's vertices are shared by every slice's few values, while the
+/// conditionals hold most of each slice's values, and the narrow lobes of
+/// mirror-like metals need many θ_h vertices near their peak. On
+/// nbrdf:chrome, a quarter halves the relative variance at 3 to 9 KB
+/// against three quarters, and on nbrdf:tungsten-carbide and nbrdf:nickel
+/// it lowers the storage that reaches 0.95 of the 32x16x256x32 table's
+/// efficiency; the plastics and paints stay within a few per cent
+/// (`docs/results.md`, "The storage frontier"). Other error bounds give
+/// both axes the whole tolerance, as for a single table.
+pub const SHARED_MARGINAL_SHARE: f64 = 0.25;
+
 /// What a file stores of [`SharedSlices`]: each curve without its end
 /// vertices, which are always (0, 0) and (n, 65535) (n the cells of its
 /// axis), so that only the inner vertices cost storage.
@@ -111,7 +130,8 @@ impl SharedSlices {
     /// The slices of the tables `tables` (row-major, `n_y` rows of `n_x`,
     /// not normalised) on the grid that `simplifier` at `tolerance` keeps
     /// on their grid table (module documentation; its first θ_h row
-    /// pinned, as every BRDF table of this crate has it). A slice without
+    /// pinned, as every BRDF table of this crate has it; a chi-square
+    /// tolerance split by [`SHARED_MARGINAL_SHARE`]). A slice without
     /// any mass takes the grid table's masses. Errors when the vertices
     /// are too many for the 16-bit offsets, or the cells for the 8-bit φ_h
     /// positions.
@@ -166,9 +186,16 @@ impl SharedSlices {
         let grid_table: Vec<f32> = grid_table.iter().map(|&v| v as f32).collect();
         // The shared positions; without any mass, one uniform cell.
         let any_mass = grid_table.iter().any(|&v| v > 0.0);
+        let split = match simplifier.bound() {
+            ErrorBound::ChiSquare => (
+                SHARED_MARGINAL_SHARE * tolerance,
+                (1.0 - SHARED_MARGINAL_SHARE) * tolerance,
+            ),
+            _ => (tolerance, tolerance),
+        };
         let grid = any_mass
             .then(|| {
-                AdaptiveCdf2D::from_values_pinned(&grid_table, n_x, n_y, simplifier, tolerance, 1)
+                AdaptiveCdf2D::from_values_pinned_split(&grid_table, n_x, n_y, simplifier, split, 1)
             })
             .transpose()?;
         let marginal_pos = match &grid {
