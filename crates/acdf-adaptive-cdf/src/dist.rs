@@ -377,16 +377,8 @@ impl AdaptiveCdf2D {
         tolerance: f64,
         pinned_rows: usize,
     ) -> Result<Self> {
-        let (marginal, conditional) = split_tolerance(simplifier, tolerance);
-        Self::build(
-            values,
-            n_x,
-            n_y,
-            simplifier,
-            marginal,
-            conditional,
-            pinned_rows,
-        )
+        let split = split_tolerance(simplifier, tolerance);
+        Self::from_values_pinned_split(values, n_x, n_y, simplifier, split, pinned_rows)
     }
 
     /// [`from_values_pinned`](Self::from_values_pinned) with the marginal

@@ -489,14 +489,18 @@ fn slices_without_mass_stay_valid() {
 #[test]
 fn compact_slices_round_trip_and_count_their_bytes() {
     let (nx, ny) = (8, 16);
-    let ramp: Vec<f32> = (0..nx * ny).map(|i| (i % 7) as f32).collect();
-    let spike: Vec<f32> = (0..nx * ny).map(|i| (i == 37) as u8 as f32 * 5.0).collect();
-    let zero = vec![0.0f32; nx * ny];
     let simplifier = simplifier_by_name("chi2").unwrap();
     let s = small(nickel());
-    let toy =
-        SharedSlices::build(&[ramp, zero.clone(), spike], nx, ny, &*simplifier, 1e-3).unwrap();
-    let none = SharedSlices::build(&[zero], nx, ny, &*simplifier, 1e-3).unwrap();
+    // A ramp, a slice without mass and a single spike; then no mass at all.
+    let tables: Vec<Vec<f32>> = (0..3)
+        .map(|k| {
+            (0..nx * ny)
+                .map(|i| [(i % 7) as f32, 0.0, (i == 37) as u8 as f32 * 5.0][k])
+                .collect()
+        })
+        .collect();
+    let toy = SharedSlices::build(&tables, nx, ny, &*simplifier, 1e-3).unwrap();
+    let none = SharedSlices::build(&tables[1..2], nx, ny, &*simplifier, 1e-3).unwrap();
     let (n_theta_h, n_phi_h) = s.half_vector_cells();
     for (g, n_x, n_y) in [
         (s.slices().clone(), n_phi_h, n_theta_h),

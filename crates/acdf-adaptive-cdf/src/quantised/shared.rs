@@ -88,11 +88,12 @@ pub struct SharedSlices {
 /// marginal's vertices are shared by every slice's few values, while the
 /// conditionals hold most of each slice's values, and the narrow lobes of
 /// mirror-like metals need many θ_h vertices near their peak. On
-/// nbrdf:chrome, a quarter halves the relative variance at 3 to 9 KB
-/// against three quarters, and on nbrdf:tungsten-carbide and nbrdf:nickel
-/// it lowers the storage that reaches 0.95 of the 32x16x256x32 table's
-/// efficiency; the plastics and paints stay within a few per cent
-/// (`docs/results.md`, "The storage frontier"). Other error bounds give
+/// nbrdf:chrome, a quarter lowers the relative variance by a third to a
+/// half at 2 to 9 KB against three quarters, and on the mirror-like
+/// metals it lowers the storage that reaches 0.95 of the 32x16x256x32
+/// table's efficiency; on the plastics and paints the variance at equal
+/// storage stays near that of three quarters (`docs/results.md`, "What
+/// the mirror-like metals need from `outgoing`"). Other error bounds give
 /// both axes the whole tolerance, as for a single table.
 pub const SHARED_MARGINAL_SHARE: f64 = 0.25;
 
