@@ -377,7 +377,23 @@ impl AdaptiveCdf2D {
         tolerance: f64,
         pinned_rows: usize,
     ) -> Result<Self> {
-        let (marginal, conditional) = split_tolerance(simplifier, tolerance);
+        let split = split_tolerance(simplifier, tolerance);
+        Self::from_values_pinned_split(values, n_x, n_y, simplifier, split, pinned_rows)
+    }
+
+    /// [`from_values_pinned`](Self::from_values_pinned) with the marginal
+    /// and the conditionals simplified at tolerances of their own, where
+    /// the caller knows a better split than the simplifier's default (the
+    /// outgoing sampler's shared grid,
+    /// [`SHARED_MARGINAL_SHARE`](crate::quantised::SHARED_MARGINAL_SHARE)).
+    pub fn from_values_pinned_split(
+        values: &[f32],
+        n_x: usize,
+        n_y: usize,
+        simplifier: &dyn Simplifier,
+        (marginal, conditional): (f64, f64),
+        pinned_rows: usize,
+    ) -> Result<Self> {
         Self::build(
             values,
             n_x,

@@ -14,4 +14,6 @@ pub use packed::{
     check_curve, check_offsets, conditional_masses, grid_indices, quantise, PackedCdf2D,
     QuantisedSegment, Stored, Q, QF,
 };
-pub use shared::{GridCell, GridDraw, SharedSlices};
+pub use shared::{
+    CompactSlices, GridCell, GridDraw, SharedSlices, NO_CONDITIONAL, SHARED_MARGINAL_SHARE,
+};

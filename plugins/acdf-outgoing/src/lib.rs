@@ -17,7 +17,10 @@
 //! chooses one grid for all of them on a table made of their normalised
 //! tables (half their mean, half the sum of their square roots; an
 //! [`AdaptiveCdf2D`](acdf_adaptive_cdf::AdaptiveCdf2D), first θ_h row pinned, as the
-//! adaptive sampler does), and every slice keeps its own masses on that
+//! adaptive sampler does, but with a quarter of a chi-square tolerance
+//! for the θ_h marginal and three quarters for the φ_h conditionals,
+//! [`SHARED_MARGINAL_SHARE`](acdf_adaptive_cdf::quantised::SHARED_MARGINAL_SHARE)),
+//! and every slice keeps its own masses on that
 //! grid as 16-bit CDF values ([`SharedSlices`]); the grid is stored once,
 //! as 16-bit θ_h and 8-bit φ_h grid indices.
 //!
@@ -66,8 +69,12 @@
 //! changes, but spends them on tails where a mirror-like lobe needs them
 //! on its peak.
 //!
-//! **Storage** counts every byte kept: the breakpoints (f32), the grid and
-//! each slice's CDF values.
+//! **Storage** counts every byte a file keeps: the breakpoints (f32), the
+//! grid and each slice's CDF values, without the end vertices of any
+//! curve, which are always (0, 0) and (n, 65535) and are put back on
+//! loading ([`CompactSlices`]); a conditional's vertices are located by a
+//! count of its inner vertices (one byte per θ_h segment) rather than a
+//! 16-bit offset. Memory holds the full curves, which the draws read.
 
 // `!(x > 0.0)` is how this module says "not positive, or NaN": the negated
 // comparison is the point, since NaN must take the rejecting branch.
@@ -78,7 +85,9 @@ pub mod anisotropic;
 mod batch;
 pub mod persist;
 
-pub use acdf_adaptive_cdf::quantised::{GridCell, GridDraw, PackedCdf2D, SharedSlices};
+pub use acdf_adaptive_cdf::quantised::{
+    CompactSlices, GridCell, GridDraw, PackedCdf2D, SharedSlices, NO_CONDITIONAL,
+};
 pub use anisotropic::AnisotropicOutgoingSampler;
 
 use acdf_adaptive_cdf::simplify::{simplifier_by_name, validate_tolerance, Simplifier};
@@ -238,7 +247,8 @@ pub struct OutgoingSampler {
     cosine_fraction: f32,
 }
 
-/// The bytes of `breakpoints` breakpoints (f32) and their slices.
+/// The bytes of `breakpoints` breakpoints (f32) and their slices, as a
+/// file stores them.
 fn stored_bytes(breakpoints: usize, slices: &SharedSlices) -> usize {
     4 * breakpoints + slices.storage_bytes()
 }
@@ -1053,7 +1063,8 @@ impl BxdfSampler for OutgoingSampler {
         acdf_core::dispatch!(Self::pdf_each_one, self, wo, wi, out)
     }
 
-    /// The breakpoints (4 bytes each) and every slice's stored arrays.
+    /// The breakpoints (4 bytes each) and the slices' compact arrays
+    /// ([`SharedSlices::storage_bytes`]).
     fn storage_bytes(&self) -> usize {
         stored_bytes(self.breakpoints.len(), &self.slices)
     }

@@ -11,17 +11,19 @@
 //! name (`string`), whether it is isotropic (u8, 1), its fingerprint (u64),
 //! the half-vector cells θ_h and φ_h (2 × u32), the cosine mixing fraction
 //! (f32), the breakpoints u_o (`f32 array`), then the slices' shared grid
-//! and per breakpoint its slice's CDF values, each an array of a u32 count
-//! and the values: the marginal positions (u16), the conditional offsets
-//! (u16), the conditional positions (u8), then per slice its marginal
-//! then conditional CDF values (u16).
+//! and per breakpoint its slice's CDF values without the end vertices of
+//! any curve ([`CompactSlices`]), each an array of a u32 count and the
+//! values: the inner marginal positions (u16), per marginal segment the
+//! count of its conditional's inner vertices (u8, 255 for none), the inner
+//! conditional positions (u8), then per slice its inner marginal then
+//! conditional CDF values (u16).
 //!
 //! `write_slice` and `read_slice` hold the anisotropic sampler's
 //! slices, each with vertices of its own: the marginal positions, the
 //! marginal CDF values, the offsets, the conditional positions and the
 //! conditional CDF values.
 
-use super::{OutgoingBuilder, OutgoingSampler, PackedCdf2D, SharedSlices};
+use super::{CompactSlices, OutgoingBuilder, OutgoingSampler, PackedCdf2D, SharedSlices};
 use acdf_adaptive_cdf::simplify::simplifier_by_name;
 use acdf_core::BxdfSampler;
 use acdf_io::fsio::write_atomic;
@@ -35,12 +37,13 @@ use std::sync::Arc;
 /// The kind recorded in the file.
 pub const KIND: &str = "outgoing";
 
-/// The layout version of the body this build writes and reads: 5, whose
-/// slices share one grid and blend linearly in cos θ_o. The earlier
-/// isotropic layouts are refused with the reason, and the sampler is built
-/// again: 1 blended linearly in u_o, 3 kept each slice's own vertices (2
-/// and 4 are the anisotropic layouts).
-pub const OUTGOING_VERSION: u32 = 5;
+/// The layout version of the body this build writes and reads: 6, whose
+/// slices share one grid, blend linearly in cos θ_o and store no curve's
+/// end vertices. The earlier isotropic layouts are refused with the
+/// reason, and the sampler is built again: 1 blended linearly in u_o, 3
+/// kept each slice's own vertices, 5 stored the end vertices (2 and 4 are
+/// the anisotropic layouts).
+pub const OUTGOING_VERSION: u32 = 6;
 
 pub(crate) fn write_u16s(w: &mut ByteWriter, values: &[u16]) {
     w.length(values.len());
@@ -139,12 +142,12 @@ impl OutgoingSampler {
         w.length(self.n_phi_h);
         w.f32(self.cosine_fraction);
         w.f32_array(&self.breakpoints);
-        let slices = &self.slices;
-        write_u16s(&mut w, slices.marginal_pos());
-        write_u16s(&mut w, slices.offsets());
-        write_u8s(&mut w, slices.conditional_pos());
-        for k in 0..slices.len() {
-            write_u16s(&mut w, slices.slice_cdf(k));
+        let c = self.slices.compact();
+        write_u16s(&mut w, &c.marginal_inner);
+        write_u8s(&mut w, &c.counts);
+        write_u8s(&mut w, &c.conditional_inner);
+        for values in &c.slice_inner {
+            write_u16s(&mut w, values);
         }
         seal(&w.into_bytes())
     }
@@ -164,6 +167,7 @@ impl OutgoingSampler {
             let why = match version {
                 1 => " (layout 1 blends its slices linearly in u_o: build the sampler again)",
                 3 => " (layout 3 keeps each slice's own vertices: build the sampler again)",
+                5 => " (layout 5 stores every curve's end vertices: build the sampler again)",
                 _ => "",
             };
             return Err(invalid(
@@ -214,24 +218,21 @@ impl OutgoingSampler {
         {
             return Err(invalid("breakpoints", "not increasing from 0 to 1".into()));
         }
-        let marginal_pos = read_u16s(&mut r, "marginal positions")?;
-        let offsets = read_u16s(&mut r, "offsets")?;
-        let conditional_pos = read_u8s(&mut r, "conditional positions")?;
-        let mut cdfs = Vec::with_capacity(n.min(r.remaining()));
+        let marginal_inner = read_u16s(&mut r, "marginal positions")?;
+        let counts = read_u8s(&mut r, "conditional counts")?;
+        let conditional_inner = read_u8s(&mut r, "conditional positions")?;
+        let mut slice_inner = Vec::with_capacity(n.min(r.remaining()));
         for _ in 0..n {
-            cdfs.push(read_u16s(&mut r, "slice CDF")?);
+            slice_inner.push(read_u16s(&mut r, "slice CDF")?);
         }
         r.finish()?;
-        let stride = marginal_pos.len() + conditional_pos.len();
-        if let Some(c) = cdfs.iter().find(|c| c.len() != stride) {
-            return Err(invalid(
-                "slice CDF",
-                format!("{} values on a grid of {stride} vertices", c.len()),
-            ));
-        }
-        let slices = SharedSlices::from_arrays(&marginal_pos, &offsets, conditional_pos, &cdfs);
-        slices
-            .validate(n_phi_h, n_theta_h)
+        let compact = CompactSlices {
+            marginal_inner,
+            counts,
+            conditional_inner,
+            slice_inner,
+        };
+        let slices = SharedSlices::from_compact(&compact, n_phi_h, n_theta_h)
             .map_err(|reason| invalid("slices", reason))?;
         let brdf = Arc::new(StoredMaterial {
             name: material,

@@ -20,6 +20,11 @@
 //! with mass lies in a segment of the grid with a conditional, and each
 //! slice's quantised masses keep every positive segment positive
 //! ([`quantise`]).
+//!
+//! A file stores the slices as [`CompactSlices`]: every curve without its
+//! two end vertices, which are always (0, 0) and (n, 65535), and a count of
+//! inner vertices per conditional in place of its 16-bit offset;
+//! [`SharedSlices::storage_bytes`] counts those bytes.
 
 use super::packed::{
     check_curve, check_offsets, conditional_masses, grid_indices, quantise, QuantisedSegment,
@@ -27,7 +32,7 @@ use super::packed::{
 };
 use crate::curve::Curve;
 use crate::packed_env::{row_sums, segment_masses};
-use crate::simplify::Simplifier;
+use crate::simplify::{ErrorBound, Simplifier};
 use crate::AdaptiveCdf2D;
 use acdf_core::search::count_one;
 #[cfg(target_arch = "x86_64")]
@@ -77,6 +82,44 @@ pub struct SharedSlices {
     longest_conditional: usize,
 }
 
+/// The share of a chi-square tolerance that the shared grid's marginal
+/// (θ_h) gets; its conditionals (φ_h) get the rest. A quarter, where a
+/// single table's simplification gives the marginal three quarters: the
+/// marginal's vertices are shared by every slice's few values, while the
+/// conditionals hold most of each slice's values, and the narrow lobes of
+/// mirror-like metals need many θ_h vertices near their peak. On
+/// nbrdf:chrome, a quarter lowers the relative variance by a third to a
+/// half at 2 to 9 KB against three quarters, and on the mirror-like
+/// metals it lowers the storage that reaches 0.95 of the 32x16x256x32
+/// table's efficiency; on the plastics and paints the variance at equal
+/// storage stays near that of three quarters (`docs/results.md`, "What
+/// the mirror-like metals need from `outgoing`"). Other error bounds give
+/// both axes the whole tolerance, as for a single table.
+pub const SHARED_MARGINAL_SHARE: f64 = 0.25;
+
+/// What a file stores of [`SharedSlices`]: each curve without its end
+/// vertices, which are always (0, 0) and (n, 65535) (n the cells of its
+/// axis), so that only the inner vertices cost storage.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CompactSlices {
+    /// The marginal positions (θ_h grid indices) but the first and last.
+    pub marginal_inner: Vec<u16>,
+    /// Per marginal segment, the number of inner vertices of its
+    /// conditional, or [`NO_CONDITIONAL`] for a segment without mass.
+    pub counts: Vec<u8>,
+    /// The conditionals' inner positions (φ_h grid indices), one
+    /// conditional after another.
+    pub conditional_inner: Vec<u8>,
+    /// Per slice, its marginal's inner CDF values, then each
+    /// conditional's.
+    pub slice_inner: Vec<Vec<u16>>,
+}
+
+/// The count of [`CompactSlices`] that marks a marginal segment without a
+/// conditional (a conditional has at most 254 inner vertices, since a
+/// slice has at most 255 φ_h cells).
+pub const NO_CONDITIONAL: u8 = u8::MAX;
+
 /// Entries after the CDF values and the conditional positions that are
 /// not part of them: a lane gather reads four bytes at an entry, so the
 /// last value (two bytes) and the last position (one byte) need them
@@ -88,7 +131,8 @@ impl SharedSlices {
     /// The slices of the tables `tables` (row-major, `n_y` rows of `n_x`,
     /// not normalised) on the grid that `simplifier` at `tolerance` keeps
     /// on their grid table (module documentation; its first θ_h row
-    /// pinned, as every BRDF table of this crate has it). A slice without
+    /// pinned, as every BRDF table of this crate has it; a chi-square
+    /// tolerance split by [`SHARED_MARGINAL_SHARE`]). A slice without
     /// any mass takes the grid table's masses. Errors when the vertices
     /// are too many for the 16-bit offsets, or the cells for the 8-bit φ_h
     /// positions.
@@ -143,9 +187,16 @@ impl SharedSlices {
         let grid_table: Vec<f32> = grid_table.iter().map(|&v| v as f32).collect();
         // The shared positions; without any mass, one uniform cell.
         let any_mass = grid_table.iter().any(|&v| v > 0.0);
+        let split = match simplifier.bound() {
+            ErrorBound::ChiSquare => (
+                SHARED_MARGINAL_SHARE * tolerance,
+                (1.0 - SHARED_MARGINAL_SHARE) * tolerance,
+            ),
+            _ => (tolerance, tolerance),
+        };
         let grid = any_mass
             .then(|| {
-                AdaptiveCdf2D::from_values_pinned(&grid_table, n_x, n_y, simplifier, tolerance, 1)
+                AdaptiveCdf2D::from_values_pinned_split(&grid_table, n_x, n_y, simplifier, split, 1)
             })
             .transpose()?;
         let marginal_pos = match &grid {
@@ -418,10 +469,129 @@ impl SharedSlices {
         }
     }
 
-    /// Bytes kept: two per position of the marginal, offset and CDF value,
-    /// one per conditional position.
+    /// Bytes kept, as [`compact`](Self::compact) stores them: two per
+    /// inner marginal position and inner CDF value, one per segment's
+    /// count and inner conditional position. The first and last vertex of
+    /// every curve are always (0, 0) and (n, 65535), so they are not stored.
     pub fn storage_bytes(&self) -> usize {
-        2 * (self.grid.len() + self.cdf.len() - CDF_PAD) + self.conditional_pos.len() - POSITION_PAD
+        let (vertices, conditionals) = self.conditional_vertices();
+        let inner_conditional = vertices - 2 * conditionals;
+        let inner = self.m - 2 + inner_conditional;
+        2 * (self.m - 2) + (self.m - 1) + inner_conditional + 2 * inner * self.count
+    }
+
+    /// The arrays that determine the slices: every curve without its two
+    /// end vertices, and per marginal segment the count of its
+    /// conditional's inner vertices (module documentation of
+    /// [`CompactSlices`]).
+    pub fn compact(&self) -> CompactSlices {
+        let m = self.m;
+        let offsets = self.offsets();
+        let pos = self.conditional_pos();
+        let mut counts = Vec::with_capacity(m - 1);
+        let mut conditional_inner = Vec::new();
+        for w in offsets.windows(2) {
+            let (a, b) = (w[0] as usize, w[1] as usize);
+            if a == b {
+                counts.push(NO_CONDITIONAL);
+            } else {
+                // At most n_x - 1 <= 254 inner vertices: below the marker.
+                counts.push((b - a - 2) as u8);
+                conditional_inner.extend_from_slice(&pos[a + 1..b - 1]);
+            }
+        }
+        let slice_inner = (0..self.count)
+            .map(|s| {
+                let values = self.slice_cdf(s);
+                let mut inner = values[1..m - 1].to_vec();
+                for w in offsets.windows(2) {
+                    let (a, b) = (w[0] as usize, w[1] as usize);
+                    if b > a {
+                        inner.extend_from_slice(&values[m + a + 1..m + b - 1]);
+                    }
+                }
+                inner
+            })
+            .collect();
+        CompactSlices {
+            marginal_inner: self.marginal_pos()[1..m - 1].to_vec(),
+            counts,
+            conditional_inner,
+            slice_inner,
+        }
+    }
+
+    /// The slices of their [`compact`](Self::compact) arrays on a grid of
+    /// `n_x` × `n_y` cells, checked ([`validate`](Self::validate)): the
+    /// end vertices put back, (0, 0) and (n, 65535) on every curve.
+    pub fn from_compact(
+        c: &CompactSlices,
+        n_x: usize,
+        n_y: usize,
+    ) -> std::result::Result<Self, String> {
+        let (x_end, y_end) = (
+            u8::try_from(n_x).map_err(|_| format!("{n_x} phi_h cells do not fit 8 bits"))?,
+            u16::try_from(n_y).map_err(|_| format!("{n_y} theta_h cells do not fit 16 bits"))?,
+        );
+        let m = c.marginal_inner.len() + 2;
+        if c.counts.len() != m - 1 {
+            return Err(format!(
+                "{} conditional counts for {} marginal segments",
+                c.counts.len(),
+                m - 1
+            ));
+        }
+        let marginal_pos = [&[0][..], &c.marginal_inner, &[y_end][..]].concat();
+        let mut offsets = vec![0u16];
+        let mut conditional_pos = Vec::new();
+        let mut inner = c.conditional_inner.iter();
+        let mut ranges = Vec::new();
+        for &k in &c.counts {
+            if k != NO_CONDITIONAL {
+                let start = conditional_pos.len();
+                conditional_pos.push(0);
+                for _ in 0..k {
+                    let p = inner
+                        .next()
+                        .ok_or("fewer conditional positions than counted")?;
+                    conditional_pos.push(*p);
+                }
+                conditional_pos.push(x_end);
+                ranges.push((start, k as usize));
+            }
+            offsets.push(
+                u16::try_from(conditional_pos.len())
+                    .map_err(|_| "the conditional vertices do not fit the offsets".to_string())?,
+            );
+        }
+        if inner.next().is_some() {
+            return Err("more conditional positions than counted".into());
+        }
+        let expected = m - 2 + c.conditional_inner.len();
+        let mut cdfs = Vec::with_capacity(c.slice_inner.len());
+        for values in &c.slice_inner {
+            if values.len() != expected {
+                return Err(format!(
+                    "{} inner CDF values on a grid of {expected} inner vertices",
+                    values.len()
+                ));
+            }
+            let mut cdf = Vec::with_capacity(m + conditional_pos.len());
+            cdf.push(0);
+            cdf.extend_from_slice(&values[..m - 2]);
+            cdf.push(Q);
+            let mut at = m - 2;
+            for &(_, k) in &ranges {
+                cdf.push(0);
+                cdf.extend_from_slice(&values[at..at + k]);
+                cdf.push(Q);
+                at += k;
+            }
+            cdfs.push(cdf);
+        }
+        let slices = SharedSlices::from_arrays(&marginal_pos, &offsets, conditional_pos, &cdfs);
+        slices.validate(n_x, n_y)?;
+        Ok(slices)
     }
 
     /// The number of marginal vertices.
