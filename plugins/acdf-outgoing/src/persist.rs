@@ -41,7 +41,7 @@ pub const KIND: &str = "outgoing";
 /// slices share one grid, blend linearly in cos θ_o and store no curve's
 /// end vertices. The earlier isotropic layouts are refused with the
 /// reason, and the sampler is built again: 1 blended linearly in u_o, 3
-/// kept each slice's own vertices, 5 stored the end vertices (2 and 4 are
+/// kept each slice's own vertices, 5 stored the end vertices (2, 4 and 7 are
 /// the anisotropic layouts).
 pub const OUTGOING_VERSION: u32 = 6;
 

@@ -35,9 +35,9 @@ use acdf_tabulated::Resolution;
 use std::path::Path;
 use std::sync::Arc;
 
-/// The layout version of the anisotropic body: 6, with φ_o breakpoints
+/// The layout version of the anisotropic body: 7, with φ_o breakpoints
 /// per θ_o row over the arc of a [`Symmetry`].
-pub const ANISOTROPIC_VERSION: u32 = 6;
+pub const ANISOTROPIC_VERSION: u32 = 7;
 
 /// The layout before the arcs, φ_o breakpoints per θ_o row round the
 /// whole circle: recognised, so that its files are refused with the
