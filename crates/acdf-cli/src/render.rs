@@ -20,7 +20,7 @@ use acdf_experiments::plot::{Figure, Panel, Series, Style};
 use acdf_materials::analytic::Lambert;
 use acdf_render::render::{
     render, render_memory_estimate, Budget, Camera, Film, Geometry, ProductLight, Progress,
-    Rendered, Shader, Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO,
+    Rendered, Shader, Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO, PRODUCT_LIGHT_SHARE,
 };
 
 use crate::common::{bar, file_stem_safe, material, spinner, stdout, MaterialArgs, TableArgs};
@@ -131,9 +131,10 @@ fn strategies_help() -> String {
          and divides by the mixture density; mis-adaptive is mis-one-sample with c chosen per \
          pixel, among {}, as the one whose second moment the pixel's earlier samples estimate \
          the least; product draws from the product of the BRDF sampler's density and the map \
-         (one query per pixel, formed at its first sphere hit, --product-blocks), and \
-         mis-product draws once from it and once from the BRDF sampler, weighed by the power \
-         heuristic (the ground plane is shaded by mis-power under both)",
+         (one query per pixel, formed over four points of the pixel, --product-blocks), and \
+         mis-product draws once, from the MIS partner of the environment with probability \
+         {PRODUCT_LIGHT_SHARE} and from the product otherwise, and divides by the mixture density \
+         (the ground plane is shaded by mis-power under both)",
         Strategy::all_names().replace(',', ", "),
         acdf_render::render::FRACTIONS
             .map(|c| c.to_string())
@@ -308,16 +309,18 @@ fn run_scene(
         ),
         Strategy::Product | Strategy::MisProduct => {
             let (c, r) = product_env.as_ref().map_or((0, 0), |e| e.blocks());
-            format!(
-                "{}product:{} {c}x{r} blocks d={}",
-                if s == Strategy::MisProduct {
-                    format!("{}+", a.brdf_sampler)
-                } else {
-                    String::new()
-                },
-                a.brdf_sampler,
-                product_options.defensive
-            )
+            let product = format!(
+                "product:{} {c}x{r} blocks d={}",
+                a.brdf_sampler, product_options.defensive
+            );
+            if s == Strategy::MisProduct {
+                format!(
+                    "{product}+{} c={PRODUCT_LIGHT_SHARE}",
+                    mis_light.sampler().name()
+                )
+            } else {
+                product
+            }
         }
         _ => format!("{}+{}", a.brdf_sampler, mis_light.sampler().name()),
     };

@@ -918,7 +918,10 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         "{out}"
     );
     assert_eq!(rows[6][1], "product:uniform 64x32 blocks d=0.15");
-    assert_eq!(rows[7][1], "uniform+product:uniform 64x32 blocks d=0.15");
+    assert_eq!(
+        rows[7][1],
+        "product:uniform 64x32 blocks d=0.15+uniform-comp c=0.25"
+    );
     assert_eq!(rows[2][1], "uniform+uniform-comp");
     assert_eq!(rows[4][1], "uniform+uniform-comp c=0.5");
     assert_eq!(rows[5][1], "uniform+uniform-comp c per pixel");

@@ -67,8 +67,8 @@ def run_acdf(args: argparse.Namespace, out: Path) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--acdf", default="target/release/acdf", help="the acdf command")
-    p.add_argument("--material", required=True, help="an RGL .bsdf file")
-    p.add_argument("--envmap", required=True)
+    p.add_argument("--material", help="an RGL .bsdf file (unless --acdf-json)")
+    p.add_argument("--envmap", help="the map (unless --acdf-json)")
     p.add_argument("--width", type=int, default=64)
     p.add_argument("--height", type=int, default=48)
     p.add_argument("--spp", type=int, default=64, help="acdf's equal-sample spp")
@@ -80,12 +80,17 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("acdf_args", nargs="*", help="more arguments for acdf render (after --)")
     args = p.parse_args()
+    if not args.acdf_json and not (args.material and args.envmap):
+        p.error("give --material and --envmap, or --acdf-json")
 
     import drjit as dr
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")
     dr.set_thread_count(1)
+    # The measured BSDF's RGB can be slightly negative: Mitsuba warns per
+    # sample.
+    mi.set_log_level(mi.LogLevel.Error)
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -120,10 +125,15 @@ def main() -> None:
         img = np.array(mi.render(scene, seed=seed), dtype=np.float64)[:, :, :3]
         return img, time.process_time() - start
 
+    # A pilot, then up to three renders, each sized by the last one's
+    # CPU seconds per sample, until one lands within 10% of the budget.
     _, pilot_t = timed(4, args.seed + 1000)
-    per_spp = pilot_t / 4
-    spp = max(1, int(budget / per_spp))
-    img, t = timed(spp, args.seed)
+    spp = max(1, int(budget / max(pilot_t / 4, 1e-9)))
+    for attempt in range(3):
+        img, t = timed(spp, args.seed + attempt)
+        if abs(t - budget) < 0.1 * budget:
+            break
+        spp = max(1, int(spp * budget / max(t, 1e-9)))
     scale = np.sqrt(t / budget)
     m_all = rmse(img, reference) * scale
     m_surface = rmse(img, reference, surface) * scale

@@ -1,9 +1,11 @@
 //! The renderer of `acdf render`: one sphere of a material, optionally on a
 //! square ground plane, lit only by an environment map at infinity, seen by
-//! a pinhole camera, shaded by direct lighting with one of six strategies
+//! a pinhole camera, shaded by direct lighting with one of eight strategies
 //! (BRDF sampling, light sampling, and their multiple importance sampling
 //! combinations: two draws weighted by the balance or the power heuristic,
-//! or one draw from their mixture, with a fixed or a per-pixel fraction).
+//! or one draw from their mixture, with a fixed or a per-pixel fraction;
+//! and product sampling of BRDF × environment, alone or in a mixture with
+//! light sampling).
 //!
 //! # Conventions
 //!
@@ -103,13 +105,27 @@ pub enum Strategy {
     /// samples, so each is an unbiased estimate, as with a fixed c.
     Adaptive,
     /// Directions from the product sampler (`acdf-product`): one
-    /// [`ProductQuery`] per pixel, formed at the pixel's first sphere hit
-    /// and kept for all its samples ([`ProductLight`]).
+    /// [`ProductQuery`] per pixel, formed before its first sample over the
+    /// sphere's points at [`QUERY_POINTS`] of the pixel and kept for all
+    /// its samples ([`ProductLight`]).
     Product,
-    /// One direction from the product sampler and one from the BRDF
-    /// sampler, weighted by the power heuristic (β = 2).
+    /// One direction per camera sample, from the environment sampler
+    /// (the MIS partner) with probability [`PRODUCT_LIGHT_SHARE`] and from
+    /// the product sampler (itself a mixture with the BRDF sampler, its
+    /// defensive share) otherwise, divided by the mixture density: the
+    /// one-sample model, as [`Strategy::OneSample`], with the product in
+    /// the BRDF sampler's place.
     MisProduct,
 }
+
+/// The probability with which [`Strategy::MisProduct`] draws from the
+/// environment sampler rather than the product. The product's blocks weigh
+/// a block by the BRDF density at a few points, which can miss a lobe
+/// narrower than a block; a sun in such a block is then reached only by
+/// the product's defensive BRDF draws, at a density far below its
+/// radiance (a firefly). A share of light draws bounds the estimate
+/// there, as MIS bounds BRDF sampling (docs/rendering.md).
+pub const PRODUCT_LIGHT_SHARE: f32 = 0.25;
 
 /// The probability with which [`Strategy::OneSample`] draws from the BRDF
 /// sampler unless told otherwise, and with which [`Strategy::Adaptive`]
@@ -278,12 +294,10 @@ impl Strategy {
         }
         let (a, b) = match self {
             Strategy::Brdf | Strategy::Light | Strategy::Product => return 1.0,
-            Strategy::Balance | Strategy::OneSample | Strategy::Adaptive => {
+            Strategy::Balance | Strategy::OneSample | Strategy::Adaptive | Strategy::MisProduct => {
                 (own as f64, other as f64)
             }
-            Strategy::Power | Strategy::MisProduct => {
-                ((own as f64).powi(2), (other as f64).powi(2))
-            }
+            Strategy::Power => ((own as f64).powi(2), (other as f64).powi(2)),
         };
         if a + b > 0.0 {
             (a / (a + b)) as f32
@@ -448,23 +462,25 @@ pub struct Shader<'a> {
 /// defensive share δ of the queries.
 ///
 /// Amortisation: a [`ProductQuery`] (one BRDF density per evaluation point
-/// of the map's blocks above the horizon) costs as much as hundreds of
-/// camera samples, so each pixel forms one, at its first sample that hits
-/// the sphere, and keeps it ([`Film`]) for all its later samples, whose
-/// shading points lie elsewhere in the pixel. Those draw from it with
-/// [`ProductQuery::sample_at`] in their own frame and with their own wo:
-/// the block part is a density of world directions and stays exact, the
-/// defensive part is the BRDF sampler at the actual point, so the density
-/// is exact and covers the lobe wherever the BRDF sampler does, and the
-/// estimate stays unbiased; only how well the blocks fit the product
-/// changes across the pixel.
+/// of the map's blocks above the horizon) costs as much as a hundred
+/// camera samples, so each pixel forms one, before its first sample, over
+/// the sphere's shading points at its [`QUERY_POINTS`]
+/// ([`Shader::form_pixel_query`]; a pixel none of whose points meets the
+/// sphere forms it at its first sphere hit), and keeps it ([`Film`]) for
+/// all its samples, whose shading points lie anywhere in the pixel. Those
+/// draw from it with [`ProductQuery::sample_at`] in their own frame and
+/// with their own wo: the block part is a density of world directions and
+/// stays exact, the defensive part is the BRDF sampler at the actual
+/// point, so the density is exact and covers the lobe wherever the BRDF
+/// sampler does, and the estimate stays unbiased; only how well the blocks
+/// fit the product changes across the pixel.
 #[derive(Clone, Copy)]
 pub struct ProductLight<'a> {
     /// The map's blocks.
     pub env: &'a ProductEnv,
     /// δ, in [0, 1].
     pub defensive: f32,
-    /// Draws (of each technique) per shading point, averaged, at least 1:
+    /// Directions drawn per shading point, averaged, at least 1:
     /// more share a camera ray and its hit among several directions.
     pub draws: usize,
 }
@@ -488,9 +504,9 @@ enum Weighting<'q> {
     /// By a two-sample heuristic of the two densities, over the drawing
     /// technique's density.
     Heuristic(Strategy),
-    /// A BRDF sampler's direction by the power heuristic against this
-    /// product query's density.
-    AgainstProduct(&'q ProductQuery, ProductLight<'q>),
+    /// An environment sampler's direction by 1 / the density of the
+    /// mixture of it (with this probability) and this product query.
+    WithProduct(&'q ProductQuery, ProductLight<'q>, f32),
     /// By 1 / (the one-sample mixture's density), c the BRDF sampler's
     /// probability.
     Mixture(f32),
@@ -521,8 +537,8 @@ impl Shader<'_> {
     /// [`radiance`](Self::radiance) for a pixel whose fraction moments are
     /// `moments` and whose product query is `query`: [`Strategy::Adaptive`]
     /// draws with the fraction `c` and adds the estimate to the moments;
-    /// the product strategies form the query at the first sphere hit and
-    /// draw from it after; the other strategies ignore all three.
+    /// the product strategies draw from the query (formed at this sample's
+    /// shading point if the pixel has none yet); the other strategies ignore all three.
     #[inline(always)]
     pub fn pixel_radiance(
         &self,
@@ -617,15 +633,25 @@ impl Shader<'_> {
                 let (Some(light), Some(q)) = (self.product, self.query_for(&at, query)) else {
                     return (Rgb::ZERO, none);
                 };
-                let mis = strategy == Strategy::MisProduct;
                 let draws = light.draws.max(1);
                 let mut sum = Rgb::ZERO;
                 for _ in 0..draws {
-                    sum += self.product_draw(&at, q, light, pair(), mis);
-                    if mis {
-                        let w = Weighting::AgainstProduct(q, light);
-                        sum += self.brdf_draw(&at, pair(), w).0;
-                    }
+                    let u = pair();
+                    sum += if strategy == Strategy::Product {
+                        self.product_draw(&at, q, light, u, 0.0)
+                    } else {
+                        // As the one-sample strategy: the first number
+                        // picks the technique and is stretched back.
+                        let c = PRODUCT_LIGHT_SHARE;
+                        if u.x < c {
+                            let v = Vec2::new(u.x / c, u.y);
+                            self.light_draw(&at, v, Weighting::WithProduct(q, light, c))
+                                .0
+                        } else {
+                            let v = Vec2::new((u.x - c) / (1.0 - c), u.y);
+                            self.product_draw(&at, q, light, v, c)
+                        }
+                    };
                 }
                 (sum / draws as f32, none)
             }
@@ -705,8 +731,8 @@ impl Shader<'_> {
 
     /// The estimate of a direction drawn from the product query `q` at
     /// `at` (its own frame and wo, [`ProductQuery::sample_at`]) from `u`:
-    /// f L V cos / p, times the power heuristic's weight against the BRDF
-    /// sampler if `mis`.
+    /// f L V cos / p, with p the mixture (1 − c) p + c p_l when the
+    /// environment sampler draws with probability `c` > 0.
     #[inline(always)]
     fn product_draw(
         &self,
@@ -714,7 +740,7 @@ impl Shader<'_> {
         q: &ProductQuery,
         light: ProductLight,
         u: Vec2,
-        mis: bool,
+        c: f32,
     ) -> Rgb {
         let Some(s) = q.sample_at(light.env, at.surface.sampler, &at.frame, at.wo, u) else {
             return Rgb::ZERO;
@@ -723,16 +749,16 @@ impl Shader<'_> {
         if !self.visible(at, wi) {
             return Rgb::ZERO;
         }
-        let w = if mis {
-            Strategy::MisProduct.weight(s.pdf, s.brdf_pdf)
+        let pdf = if c > 0.0 {
+            mixture_pdf(c, self.light.pdf(Some(at.n), wi), s.pdf)
         } else {
-            1.0
+            s.pdf
         };
-        if !(w > 0.0) {
+        if !(pdf > 0.0) {
             return Rgb::ZERO;
         }
         let f = at.surface.brdf.eval(at.wo, s.wi);
-        f * self.light.radiance(wi) * (w * s.wi.z / s.pdf)
+        f * self.light.radiance(wi) * (s.wi.z / pdf)
     }
 
     /// Whether the environment is seen from `at` in the world direction
@@ -766,11 +792,8 @@ impl Shader<'_> {
                 s.pdf,
                 [0.0; 2],
             ),
-            Weighting::AgainstProduct(q, light) => (
-                Strategy::MisProduct.weight(s.pdf, q.pdf_given(light.env, wi, s.pdf)),
-                s.pdf,
-                [0.0; 2],
-            ),
+            // The product is not a partner of the BRDF sampler's draws.
+            Weighting::WithProduct(..) => (0.0, s.pdf, [0.0; 2]),
             Weighting::Mixture(c) => {
                 let p_l = if c < 1.0 {
                     self.light.pdf(Some(at.n), wi)
@@ -815,8 +838,10 @@ impl Shader<'_> {
                 };
                 (1.0, mixture_pdf(c, p_f, s.pdf), [p_f, s.pdf])
             }
-            // The environment sampler is not a partner of the product.
-            Weighting::AgainstProduct(..) => (0.0, s.pdf, [0.0; 2]),
+            Weighting::WithProduct(q, light, c) => {
+                let p = q.pdf_at(light.env, at.surface.sampler, &at.frame, at.wo, wi);
+                (1.0, mixture_pdf(c, s.pdf, p), [0.0; 2])
+            }
         };
         if !(w > 0.0 && pdf > 0.0) {
             return none;
@@ -860,7 +885,7 @@ impl Shader<'_> {
 
     /// CPU seconds per pixel, on the calling thread, of what a pixel
     /// costs once whatever its number of samples: forming its product
-    /// query at its first sphere hit ([`Strategy::Product`],
+    /// query ([`Shader::form_pixel_query`], [`Strategy::Product`],
     /// [`Strategy::MisProduct`]; 0 for the other strategies). The fastest
     /// of `repeats` timed passes of one sample per pixel starting without
     /// queries, less the same pass with the queries formed. With
@@ -1824,7 +1849,8 @@ mod tests {
     /// < 4 (two-sided significance 6e-5) at 64 points of the sphere, each
     /// ray's query formed at its first hit; with one and with 4 draws per
     /// shading point, and with blocks coarser than the map. A BRDF sampler
-    /// that misreports its density by 2x is rejected (|z| > 4).
+    /// that misreports its density by 2x is rejected (|z| > 4), and so is,
+    /// for mis-product, an environment partner that does.
     #[test]
     fn product_strategies_are_unbiased_and_a_wrong_pdf_is_caught() {
         let map = split_map();
@@ -1834,7 +1860,11 @@ mod tests {
             uniform_env_sampler(&map, TableKind::Compensated).unwrap(),
         );
         let doubled = DoubledPdf(acdf_cosine::CosineSampler);
-        let z_of = |strategy, sampler: &dyn BxdfSampler, blocks, draws| {
+        let wrong = WrongPdf(EnvironmentLight::new(
+            map.clone(),
+            uniform_env_sampler(&map, TableKind::Compensated).unwrap(),
+        ));
+        let z_of = |strategy, sampler: &dyn BxdfSampler, light: &dyn Light, blocks, draws| {
             let env = ProductEnv::new(map.clone(), blocks, 1).unwrap();
             let surface = Surface {
                 brdf: &lambert,
@@ -1844,7 +1874,7 @@ mod tests {
                 geometry: Geometry { plane: false },
                 sphere: surface,
                 plane: surface,
-                light: &light,
+                light,
                 strategy,
                 mis_fraction: DEFAULT_MIS_FRACTION,
                 product: Some(ProductLight {
@@ -1857,14 +1887,26 @@ mod tests {
         };
         for strategy in [Strategy::Product, Strategy::MisProduct] {
             for (blocks, draws) in [(32, 1), (8, 4)] {
-                let z = z_of(strategy, &acdf_cosine::CosineSampler, blocks, draws);
+                let z = z_of(strategy, &acdf_cosine::CosineSampler, &light, blocks, draws);
                 eprintln!("{strategy:?} {blocks} blocks, {draws} draws: pooled z {z:.2}");
                 assert!(z.abs() < 4.0, "{strategy:?} {blocks} {draws}: pooled z {z}");
             }
-            let z = z_of(strategy, &doubled, 32, 1);
+            let z = z_of(strategy, &doubled, &light, 32, 1);
             eprintln!("{strategy:?}, BRDF pdf doubled: pooled z {z:.2}");
             assert!(z.abs() > 4.0, "{strategy:?} with a wrong pdf: pooled z {z}");
         }
+        let z = z_of(
+            Strategy::MisProduct,
+            &acdf_cosine::CosineSampler,
+            &wrong,
+            32,
+            1,
+        );
+        eprintln!("MisProduct, light pdf doubled: pooled z {z:.2}");
+        assert!(
+            z.abs() > 4.0,
+            "mis-product with a wrong light pdf: pooled z {z}"
+        );
     }
 
     /// A small render of built-in nickel under a map with a sun, each
