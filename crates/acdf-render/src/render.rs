@@ -1823,6 +1823,32 @@ mod tests {
         assert_eq!(m, FractionMoments::default());
     }
 
+    /// The sphere alone, of `brdf` drawn by `sampler`, under `light`, with
+    /// the product's blocks `env` (δ = 0.15, `draws` per shading point).
+    fn sphere_with_product<'a>(
+        brdf: &'a dyn Brdf,
+        sampler: &'a dyn BxdfSampler,
+        light: &'a dyn Light,
+        strategy: Strategy,
+        env: &'a ProductEnv,
+        draws: usize,
+    ) -> Shader<'a> {
+        let surface = Surface { brdf, sampler };
+        Shader {
+            geometry: Geometry { plane: false },
+            sphere: surface,
+            plane: surface,
+            light,
+            strategy,
+            mis_fraction: DEFAULT_MIS_FRACTION,
+            product: Some(ProductLight {
+                env,
+                defensive: 0.15,
+                draws,
+            }),
+        }
+    }
+
     /// A BRDF sampler that reports twice its density: the mutant the
     /// product strategies must be seen to get wrong.
     struct DoubledPdf<S>(S);
@@ -1866,23 +1892,7 @@ mod tests {
         ));
         let z_of = |strategy, sampler: &dyn BxdfSampler, light: &dyn Light, blocks, draws| {
             let env = ProductEnv::new(map.clone(), blocks, 1).unwrap();
-            let surface = Surface {
-                brdf: &lambert,
-                sampler,
-            };
-            let shader = Shader {
-                geometry: Geometry { plane: false },
-                sphere: surface,
-                plane: surface,
-                light,
-                strategy,
-                mis_fraction: DEFAULT_MIS_FRACTION,
-                product: Some(ProductLight {
-                    env: &env,
-                    defensive: 0.15,
-                    draws,
-                }),
-            };
+            let shader = sphere_with_product(&lambert, sampler, light, strategy, &env, draws);
             pooled_z(&shader, 300)
         };
         for strategy in [Strategy::Product, Strategy::MisProduct] {
@@ -1944,23 +1954,8 @@ mod tests {
             acdf::env_registry::make_env_sampler("adaptive-comp", &map, &o).unwrap(),
         );
         let env = ProductEnv::new(map.clone(), 32, 1).unwrap();
-        let surface = Surface {
-            brdf: nickel.as_ref(),
-            sampler: &sampler,
-        };
-        let shader = |strategy| Shader {
-            geometry: Geometry { plane: false },
-            sphere: surface,
-            plane: surface,
-            light: &light,
-            strategy,
-            mis_fraction: DEFAULT_MIS_FRACTION,
-            product: Some(ProductLight {
-                env: &env,
-                defensive: 0.15,
-                draws: 1,
-            }),
-        };
+        let shader =
+            |strategy| sphere_with_product(nickel.as_ref(), &sampler, &light, strategy, &env, 1);
         let camera = Camera::default();
         let (size, spp) = ((16, 12), 256);
         let budget = Budget { spp, time: None };
