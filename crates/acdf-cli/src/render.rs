@@ -13,13 +13,14 @@ use acdf::env_registry::{make_env_sampler, AnyEnvSampler, EnvSamplerOptions};
 use acdf::error::{Error, Result};
 use acdf::lights::{EnvMap, EnvironmentLight};
 use acdf::material::Material;
+use acdf::product::{ProductEnv, ProductOptions};
 use acdf::registry::{make_sampler, sampler_help, AnySampler, SamplerOps};
 use acdf_core::{BxdfSampler, Rgb, SphereSampler, Vec3};
 use acdf_experiments::plot::{Figure, Panel, Series, Style};
 use acdf_materials::analytic::Lambert;
 use acdf_render::render::{
-    render, render_memory_estimate, Budget, Camera, Film, Geometry, Progress, Rendered, Shader,
-    Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO,
+    render, render_memory_estimate, Budget, Camera, Film, Geometry, ProductLight, Progress,
+    Rendered, Shader, Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO, PRODUCT_LIGHT_SHARE,
 };
 
 use crate::common::{bar, file_stem_safe, material, spinner, stdout, MaterialArgs, TableArgs};
@@ -55,6 +56,23 @@ pub struct Args {
     /// divided by the mixture density c p_brdf + (1 - c) p_light.
     #[arg(long, value_name = "C", default_value_t = DEFAULT_MIS_FRACTION)]
     mis_fraction: f32,
+    /// Block columns of the map for product and mis-product (block rows:
+    /// half as many), from 1 to 1024; each pixel's query weighs every block
+    /// above its horizon by the BRDF sampler's density.
+    #[arg(long, value_name = "N", default_value_t = ProductOptions::default().block_columns)]
+    product_blocks: usize,
+    /// Evaluation points of the BRDF factor per block side for product and
+    /// mis-product (S² per block and shading point), from 1 to 1024.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    product_points: usize,
+    /// Directions drawn per shading point by product and mis-product (of
+    /// each technique), averaged: several share one camera ray.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    product_draws: usize,
+    /// Also write the equal-sample, equal-time and equal-CPU-time tables
+    /// as JSON, with the scene, the reference and each strategy's timings.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
     /// Image width in pixels.
     #[arg(long, default_value_t = 128)]
     width: usize,
@@ -112,7 +130,11 @@ fn strategies_help() -> String {
          mis-one-sample draws once, from the BRDF sampler with probability --mis-fraction, \
          and divides by the mixture density; mis-adaptive is mis-one-sample with c chosen per \
          pixel, among {}, as the one whose second moment the pixel's earlier samples estimate \
-         the least",
+         the least; product draws from the product of the BRDF sampler's density and the map \
+         (one query per pixel, formed over four points of the pixel, --product-blocks), and \
+         mis-product draws once, from the MIS partner of the environment with probability \
+         {PRODUCT_LIGHT_SHARE} and from the product otherwise, and divides by the mixture density \
+         (the ground plane is shaded by mis-power under both)",
         Strategy::all_names().replace(',', ", "),
         acdf_render::render::FRACTIONS
             .map(|c| c.to_string())
@@ -155,6 +177,9 @@ struct Result1 {
     rmse_last: f64,
     /// CPU seconds per camera sample on one thread, fastest of the repeats.
     seconds_per_sample: f64,
+    /// CPU seconds per pixel formed once, whatever its samples (the
+    /// product queries), on one thread.
+    seconds_per_pixel_setup: f64,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -231,17 +256,38 @@ fn run_scene(
         sampler: &brdf_sampler,
     };
     let geometry = Geometry { plane: a.plane };
+    let product_options = ProductOptions {
+        block_columns: a.product_blocks,
+        points_per_side: a.product_points,
+        ..ProductOptions::default()
+    };
+    let product_env = if strategies.iter().any(|s| s.is_product()) {
+        product_options.validate()?;
+        Some(ProductEnv::new(
+            map.clone(),
+            product_options.block_columns,
+            product_options.points_per_side,
+        )?)
+    } else {
+        None
+    };
+    let product = product_env.as_ref().map(|env| ProductLight {
+        env,
+        defensive: product_options.defensive,
+        draws: a.product_draws,
+    });
     let shader = |strategy: Strategy| Shader {
         geometry,
         sphere,
         plane,
-        light: if strategy.is_mis() {
+        light: if strategy.is_mis() || strategy.is_product() {
             &mis_light
         } else {
             &light
         },
         strategy,
         mis_fraction: a.mis_fraction,
+        product,
     };
     let camera = Camera::default();
     let size = (a.width, height);
@@ -261,6 +307,21 @@ fn run_scene(
             mis_light.sampler().name(),
             a.mis_fraction
         ),
+        Strategy::Product | Strategy::MisProduct => {
+            let (c, r) = product_env.as_ref().map_or((0, 0), |e| e.blocks());
+            let product = format!(
+                "product:{} {c}x{r} blocks d={}",
+                a.brdf_sampler, product_options.defensive
+            );
+            if s == Strategy::MisProduct {
+                format!(
+                    "{product}+{} c={PRODUCT_LIGHT_SHARE}",
+                    mis_light.sampler().name()
+                )
+            } else {
+                product
+            }
+        }
         _ => format!("{}+{}", a.brdf_sampler, mis_light.sampler().name()),
     };
 
@@ -327,7 +388,7 @@ fn run_scene(
             100,
             &format!("{} ({})", strategy.name(), samplers_of(strategy)),
         );
-        let r = render(
+        let mut r = render(
             &shader(strategy),
             &camera,
             size,
@@ -347,7 +408,14 @@ fn run_scene(
             a.seed,
             a.timing_repeats,
             Some(r.last.moments()),
+            Some(r.last.queries()),
         );
+        let seconds_per_pixel_setup =
+            shader(strategy).seconds_per_pixel_setup(&camera, size, a.seed, a.timing_repeats);
+        // The queries are no longer needed; the next strategy's take
+        // their memory.
+        r.at_spp.drop_queries();
+        r.last.drop_queries();
         let rmse_at_spp = r.at_spp.rmse(&reference).unwrap_or(f64::NAN);
         let rmse_last = r.last.rmse(&reference).unwrap_or(f64::NAN);
         results.push(Result1 {
@@ -357,6 +425,7 @@ fn run_scene(
             rmse_at_spp,
             rmse_last,
             seconds_per_sample,
+            seconds_per_pixel_setup,
         });
     }
 
@@ -395,7 +464,43 @@ fn run_scene(
     written.push(side_path);
     written.extend(convergence_plot(a, &label, m, &results)?);
 
-    print_tables(a, size, m, &brdf_sampler, &light, &mis_light, &results)?;
+    let tables = tables(a, size, &results);
+    print_tables(a, size, m, &brdf_sampler, &light, &mis_light, &tables)?;
+    if let Some(path) = &a.json {
+        let ref_path = match &a.reference {
+            Some(p) => p.clone(),
+            None => a.out.join(format!("{label}-reference.exr")),
+        };
+        let report = JsonReport {
+            material: m.spec.to_string(),
+            envmap: a
+                .envmap
+                .as_ref()
+                .map_or("procedural sky".into(), |p| p.display().to_string()),
+            plane: a.plane,
+            width: size.0,
+            height: size.1,
+            reference: ref_path.display().to_string(),
+            reference_spp: a.reference.is_none().then_some(a.ref_spp),
+            brdf_sampler: a.brdf_sampler.clone(),
+            env_sampler: light.sampler().name().to_string(),
+            mis_env_sampler: mis_light.sampler().name().to_string(),
+            product_blocks: product_env.as_ref().map(|e| e.blocks()),
+            seed: a.seed,
+            timings: results
+                .iter()
+                .map(|r| JsonTiming {
+                    strategy: r.strategy.name(),
+                    samplers: r.samplers.clone(),
+                    cpu_seconds_per_camera_sample: r.seconds_per_sample,
+                    cpu_seconds_per_pixel_setup: r.seconds_per_pixel_setup,
+                })
+                .collect(),
+            tables,
+        };
+        crate::common::write_json(path, &report)?;
+        written.push(path.clone());
+    }
     for p in written {
         eprintln!("wrote {}", p.display());
     }
@@ -474,7 +579,159 @@ fn convergence_plot(
     Ok(vec![png, svg])
 }
 
-#[allow(clippy::too_many_arguments)]
+/// One row of a results table.
+#[derive(serde::Serialize)]
+struct Row {
+    strategy: &'static str,
+    samplers: String,
+    /// Samples per pixel (modelled, so fractional, at equal CPU time).
+    spp: f64,
+    seconds: f64,
+    rmse: f64,
+    /// The RMSE over the best of brdf and light in the same table.
+    rmse_vs_best_single: Option<f64>,
+    camera_samples_per_s: f64,
+}
+
+/// One table: equal samples, equal time, or equal CPU time.
+#[derive(serde::Serialize)]
+struct Table {
+    /// `equal_samples`, `equal_time` or `equal_cpu_time`.
+    kind: &'static str,
+    title: String,
+    /// The seconds of the equal-time and equal-CPU-time tables.
+    seconds: Option<f64>,
+    rows: Vec<Row>,
+    /// Decimals of the spp column in the CSV.
+    #[serde(skip)]
+    spp_decimals: usize,
+}
+
+/// One strategy's timings on one thread.
+#[derive(serde::Serialize)]
+struct JsonTiming {
+    strategy: &'static str,
+    samplers: String,
+    cpu_seconds_per_camera_sample: f64,
+    cpu_seconds_per_pixel_setup: f64,
+}
+
+/// What `--json` writes.
+#[derive(serde::Serialize)]
+struct JsonReport {
+    material: String,
+    envmap: String,
+    plane: bool,
+    width: usize,
+    height: usize,
+    /// The reference image (linear OpenEXR).
+    reference: String,
+    /// Its samples per pixel, when acdf rendered it.
+    reference_spp: Option<usize>,
+    brdf_sampler: String,
+    env_sampler: String,
+    mis_env_sampler: String,
+    product_blocks: Option<(usize, usize)>,
+    seed: u64,
+    timings: Vec<JsonTiming>,
+    tables: Vec<Table>,
+}
+
+/// The tables of `results`: equal samples, equal time (with --seconds),
+/// and equal CPU time, modelled.
+fn tables(a: &Args, size: (usize, usize), results: &[Result1]) -> Vec<Table> {
+    let pixels = (size.0 * size.1) as f64;
+    let table = |kind, title, seconds, spp_decimals, row: &dyn Fn(&Result1) -> (f64, f64, f64)| {
+        let best = results
+            .iter()
+            .filter(|r| r.strategy.is_single())
+            .map(|r| row(r).2)
+            .fold(f64::INFINITY, f64::min);
+        let rows = results
+            .iter()
+            .map(|r| {
+                let (spp, seconds, rmse) = row(r);
+                Row {
+                    strategy: r.strategy.name(),
+                    samplers: r.samplers.clone(),
+                    spp,
+                    seconds,
+                    rmse,
+                    rmse_vs_best_single: (best.is_finite() && best > 0.0).then(|| rmse / best),
+                    camera_samples_per_s: spp * pixels / seconds.max(1e-9),
+                }
+            })
+            .collect();
+        Table {
+            kind,
+            title,
+            seconds,
+            rows,
+            spp_decimals,
+        }
+    };
+    let mut out = vec![table(
+        "equal_samples",
+        format!("equal samples ({} spp)", a.spp),
+        None,
+        0,
+        &|r| {
+            (
+                r.rendered.at_spp.samples_per_pixel() as f64,
+                r.rendered.seconds_at_spp,
+                r.rmse_at_spp,
+            )
+        },
+    )];
+    if let Some(s) = a.seconds {
+        out.push(table(
+            "equal_time",
+            format!("equal time ({s} s)"),
+            Some(s),
+            0,
+            &|r| {
+                (
+                    r.rendered.last.samples_per_pixel() as f64,
+                    r.rendered.seconds,
+                    r.rmse_last,
+                )
+            },
+        ));
+    }
+    // Equal CPU time, modelled: the samples per pixel `budget` seconds of
+    // one thread buy after each pixel's setup, and the RMSE at --spp
+    // scaled to them (RMSE falls as 1/sqrt(samples)).
+    let budget = a.seconds.unwrap_or(1.0);
+    let mut cpu = table(
+        "equal_cpu_time",
+        format!(
+            "equal CPU time ({budget} s of one thread, modelled: RMSE at {} spp x sqrt({} / spp in budget), \
+             spp in budget = (budget / pixels - CPU s per pixel setup) / CPU s per camera sample; fastest of {} timed passes)",
+            a.spp, a.spp, a.timing_repeats
+        ),
+        Some(budget),
+        1,
+        &|r| {
+            let spp = (budget / pixels - r.seconds_per_pixel_setup).max(0.0)
+                / r.seconds_per_sample.max(1e-300);
+            // No sample in the budget: no estimate.
+            let rmse = if spp > 0.0 {
+                r.rmse_at_spp * (r.rendered.at_spp.samples_per_pixel() as f64 / spp).sqrt()
+            } else {
+                f64::INFINITY
+            };
+            (spp, budget, rmse)
+        },
+    );
+    // What a camera sample costs, setup aside (as before the setup was
+    // counted).
+    for (row, r) in cpu.rows.iter_mut().zip(results) {
+        row.camera_samples_per_s = 1.0 / r.seconds_per_sample.max(1e-300);
+    }
+    out.push(cpu);
+    out
+}
+
 fn print_tables(
     a: &Args,
     size: (usize, usize),
@@ -482,10 +739,9 @@ fn print_tables(
     brdf: &AnySampler,
     light: &EnvironmentLight<AnyEnvSampler>,
     mis_light: &EnvironmentLight<AnyEnvSampler>,
-    results: &[Result1],
+    tables: &[Table],
 ) -> Result<()> {
     let mut out = stdout();
-    let pixels = (size.0 * size.1) as f64;
     writeln!(
         out,
         "{} under {}, {}x{} px{}; storage: {} {} B, {} {} B, {} {} B",
@@ -503,97 +759,27 @@ fn print_tables(
         mis_light.sampler().name(),
         mis_light.sampler().storage_bytes(),
     )?;
-    let best_single = |rmse: fn(&Result1) -> f64| {
-        results
-            .iter()
-            .filter(|r| !r.strategy.is_mis())
-            .map(rmse)
-            .fold(f64::INFINITY, f64::min)
-    };
-    let table = |out: &mut dyn Write,
-                 title: String,
-                 rmse: fn(&Result1) -> f64,
-                 spp: fn(&Result1) -> usize,
-                 seconds: fn(&Result1) -> f64|
-     -> std::io::Result<()> {
-        writeln!(out, "{title}")?;
+    for t in tables {
+        writeln!(out, "{}", t.title)?;
         writeln!(
             out,
             "strategy,samplers,spp,seconds,rmse,rmse_vs_best_single,camera_samples_per_s"
         )?;
-        let best = best_single(rmse);
-        for r in results {
-            let rel = if best.is_finite() && best > 0.0 {
-                format!("{:.3}", rmse(r) / best)
-            } else {
-                String::new()
-            };
+        for r in &t.rows {
             writeln!(
                 out,
-                "{},{},{},{:.3},{:.6},{rel},{:.4e}",
-                r.strategy.name(),
+                "{},{},{:.*},{:.3},{:.6},{},{:.4e}",
+                r.strategy,
                 r.samplers,
-                spp(r),
-                seconds(r),
-                rmse(r),
-                spp(r) as f64 * pixels / seconds(r).max(1e-9)
+                t.spp_decimals,
+                r.spp,
+                r.seconds,
+                r.rmse,
+                r.rmse_vs_best_single
+                    .map_or(String::new(), |x| format!("{x:.3}")),
+                r.camera_samples_per_s
             )?;
         }
-        Ok(())
-    };
-    table(
-        &mut out,
-        format!("equal samples ({} spp)", a.spp),
-        |r| r.rmse_at_spp,
-        |r| r.rendered.at_spp.samples_per_pixel(),
-        |r| r.rendered.seconds_at_spp,
-    )?;
-    if let Some(s) = a.seconds {
-        table(
-            &mut out,
-            format!("equal time ({s} s)"),
-            |r| r.rmse_last,
-            |r| r.rendered.last.samples_per_pixel(),
-            |r| r.rendered.seconds,
-        )?;
-    }
-    // Equal CPU time, modelled: the RMSE at --spp scaled to `budget`
-    // seconds of one thread (RMSE falls as 1/sqrt(samples)).
-    let budget = a.seconds.unwrap_or(1.0);
-    let spp_in_budget = |r: &Result1| budget / (r.seconds_per_sample * pixels).max(1e-300);
-    let modelled = |r: &Result1| {
-        r.rmse_at_spp * (r.rendered.at_spp.samples_per_pixel() as f64 / spp_in_budget(r)).sqrt()
-    };
-    writeln!(
-        out,
-        "equal CPU time ({budget} s of one thread, modelled: RMSE at {} spp x sqrt(spp x pixels x CPU s per camera sample / {budget}); fastest of {} timed passes)",
-        a.spp,
-        a.timing_repeats
-    )?;
-    writeln!(
-        out,
-        "strategy,samplers,spp,seconds,rmse,rmse_vs_best_single,camera_samples_per_s"
-    )?;
-    let best = results
-        .iter()
-        .filter(|r| !r.strategy.is_mis())
-        .map(modelled)
-        .fold(f64::INFINITY, f64::min);
-    for r in results {
-        let rmse = modelled(r);
-        let rel = if best.is_finite() && best > 0.0 {
-            format!("{:.3}", rmse / best)
-        } else {
-            String::new()
-        };
-        writeln!(
-            out,
-            "{},{},{:.1},{budget:.3},{rmse:.6},{rel},{:.4e}",
-            r.strategy.name(),
-            r.samplers,
-            spp_in_budget(r),
-            1.0 / r.seconds_per_sample.max(1e-300)
-        )?;
     }
     out.flush()?;
     Ok(())
@@ -685,6 +871,13 @@ fn check_sizes(a: &Args) -> Result<usize> {
             ),
         });
     }
+    if !(1..=1024).contains(&a.product_draws) {
+        return Err(Error::InvalidArgument {
+            what: "product-draws",
+            value: a.product_draws.to_string(),
+            reason: "must be from 1 to 1024".into(),
+        });
+    }
     if a.timing_repeats == 0 {
         return Err(Error::InvalidArgument {
             what: "timing-repeats",
@@ -709,9 +902,19 @@ fn check_sizes(a: &Args) -> Result<usize> {
     // The reference and, per strategy, two films (at --spp and the last),
     // its PNG, its error map and their tiles in the composite (twice).
     let n = a.strategies.split(',').count() + 1;
+    // With a product strategy, at most one query per pixel is kept at a
+    // time: a share and a CDF value per block.
+    let blocks = a.product_blocks.clamp(1, 1024);
+    let query_bytes = if a.strategies.contains("product") {
+        (a.width as u64)
+            .saturating_mul(height as u64)
+            .saturating_mul((blocks * (blocks / 2).max(1) * 8 + 64) as u64)
+    } else {
+        0
+    };
     acdf_io::limits::check_memory(
         &format!("a render of {}x{height} pixels", a.width),
-        render_memory_estimate(a.width, height, 2 * n, 6 * n),
+        render_memory_estimate(a.width, height, 2 * n, 6 * n).saturating_add(query_bytes),
     )?;
     Ok(height)
 }

@@ -910,13 +910,16 @@ fn render_rows<'a>(out: &'a str, title: &str) -> Vec<Vec<&'a str>> {
 
 /// Every strategy writes a decodable EXR and PNG and an RMSE; the
 /// side-by-side has one tile per strategy and the reference, over a row of
-/// error maps; the convergence plot is written as PNG and SVG; a second run
-/// reuses the cached reference.
+/// error maps; the convergence plot is written as PNG and SVG; `--json`
+/// holds the same tables; a second run reuses the cached reference.
 #[test]
 fn render_writes_every_strategy_and_caches_the_reference() {
     let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("tables.json");
     let args = [
         "render",
+        "--json",
+        json.to_str().unwrap(),
         "--material",
         "builtin:blue-metallic-paint",
         "--brdf-sampler",
@@ -948,9 +951,16 @@ fn render_writes_every_strategy_and_caches_the_reference() {
             "mis-balance",
             "mis-power",
             "mis-one-sample",
-            "mis-adaptive"
+            "mis-adaptive",
+            "product",
+            "mis-product"
         ],
         "{out}"
+    );
+    assert_eq!(rows[6][1], "product:uniform 64x32 blocks d=0.15");
+    assert_eq!(
+        rows[7][1],
+        "product:uniform 64x32 blocks d=0.15+uniform-comp c=0.25"
     );
     assert_eq!(rows[2][1], "uniform+uniform-comp");
     assert_eq!(rows[4][1], "uniform+uniform-comp c=0.5");
@@ -962,7 +972,7 @@ fn render_writes_every_strategy_and_caches_the_reference() {
     // The modelled equal-CPU-time table: the RMSE at 2 spp scaled by the
     // samples one thread renders in 1 s.
     let cpu = render_rows(&out, "equal CPU time");
-    assert_eq!(cpu.len(), 6, "{out}");
+    assert_eq!(cpu.len(), 8, "{out}");
     for (r, e) in cpu.iter().zip(&rows) {
         let (spp, rmse, rate): (f64, f64, f64) = (
             r[2].parse().unwrap(),
@@ -970,10 +980,17 @@ fn render_writes_every_strategy_and_caches_the_reference() {
             r[6].parse().unwrap(),
         );
         let at_spp: f64 = e[4].parse().unwrap();
-        assert!(
-            rate > 1e3 && (spp - rate / (24.0 * 16.0)).abs() < 1e-3 * spp + 0.1,
-            "{r:?}"
-        );
+        // The product strategies spend part of the budget on their
+        // queries, once per pixel.
+        let all_samples = rate / (24.0 * 16.0);
+        if r[0].contains("product") {
+            assert!(rate > 1e3 && spp < all_samples && spp > 0.0, "{r:?}");
+        } else {
+            assert!(
+                rate > 1e3 && (spp - all_samples).abs() < 1e-3 * spp + 0.1,
+                "{r:?}"
+            );
+        }
         assert!(
             (rmse - at_spp * (2.0 / spp).sqrt()).abs() < 1e-3 * rmse + 2e-6,
             "{r:?}"
@@ -987,6 +1004,8 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         "mis-power",
         "mis-one-sample",
         "mis-adaptive",
+        "product",
+        "mis-product",
     ] {
         let img = image::open(dir.path().join(format!("blue-metallic-paint-{name}.png"))).unwrap();
         assert_eq!((img.width(), img.height()), (24, 16), "{name}");
@@ -997,7 +1016,37 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         }
     }
     let side = image::open(dir.path().join("blue-metallic-paint-side-by-side.png")).unwrap();
-    assert_eq!(side.width(), 7 * 24 + 6 * 4);
+    assert_eq!(side.width(), 9 * 24 + 8 * 4);
+    // The JSON: the scene, and the three tables (equal time only with
+    // --seconds) with every strategy and the CSV's figures.
+    let v = read_json(&json);
+    assert_eq!(v["material"], "builtin:blue-metallic-paint");
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(24), Some(16))
+    );
+    assert!(v["reference"].as_str().unwrap().ends_with("-reference.exr"));
+    let tables = v["tables"].as_array().unwrap();
+    let kinds: Vec<&str> = tables.iter().map(|t| t["kind"].as_str().unwrap()).collect();
+    assert_eq!(kinds, ["equal_samples", "equal_cpu_time"]);
+    for (t, csv) in tables.iter().zip([&rows, &cpu]) {
+        let json_rows = t["rows"].as_array().unwrap();
+        assert_eq!(json_rows.len(), 8);
+        for (j, c) in json_rows.iter().zip(csv) {
+            assert_eq!(j["strategy"], c[0]);
+            let rmse = j["rmse"].as_f64().unwrap();
+            let printed: f64 = c[4].parse().unwrap();
+            assert!(rmse.is_finite() && (rmse - printed).abs() <= 1e-6 + 1e-6 * rmse);
+        }
+    }
+    let timings = v["timings"].as_array().unwrap();
+    assert_eq!(timings.len(), 8);
+    for t in timings {
+        let product = t["strategy"].as_str().unwrap().contains("product");
+        let setup = t["cpu_seconds_per_pixel_setup"].as_f64().unwrap();
+        assert!(t["cpu_seconds_per_camera_sample"].as_f64().unwrap() > 0.0);
+        assert_eq!(setup > 0.0, product, "{t}");
+    }
     assert!(side.height() > 2 * 16);
     let svg =
         std::fs::read_to_string(dir.path().join("blue-metallic-paint-convergence.svg")).unwrap();
@@ -1057,6 +1106,9 @@ fn render_equal_time_runs_at_least_one_pass() {
         ("--seconds=0", "seconds"),
         // Thousands of threads ran for minutes before the system refused.
         ("--threads=100000", "threads"),
+        ("--product-draws=0", "product-draws"),
+        ("--product-blocks=0", "block columns"),
+        ("--product-points=2000", "points per side"),
     ] {
         let o = acdf(&[
             "render",
@@ -1099,6 +1151,73 @@ fn render_rejects_a_black_envmap() {
     let img = image::Rgb32FImage::from_pixel(16, 8, image::Rgb([0.0, 0.0, 0.0]));
     image::DynamicImage::ImageRgb32F(img).save(&map).unwrap();
     assert_one_line_error(&render_with_envmap(&map, dir.path()), "every texel is 0");
+}
+
+/// The product strategies on maps with little to weigh: one texel (a
+/// single block), and a map black but for one texel below the horizon of
+/// most of the sphere. Every pixel of their images and every RMSE is
+/// finite; the JSON has both rows.
+#[test]
+fn render_product_on_degenerate_maps_stays_finite() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = dir.path().join("one.hdr");
+    image::DynamicImage::ImageRgb32F(image::Rgb32FImage::from_pixel(
+        1,
+        1,
+        image::Rgb([2.0, 1.0, 0.5]),
+    ))
+    .save(&one)
+    .unwrap();
+    let low = dir.path().join("low.hdr");
+    image::DynamicImage::ImageRgb32F(image::Rgb32FImage::from_fn(32, 16, |x, y| {
+        image::Rgb(if (x, y) == (5, 15) {
+            [1e4; 3]
+        } else {
+            [0.0; 3]
+        })
+    }))
+    .save(&low)
+    .unwrap();
+    for map in [&one, &low] {
+        let json = dir.path().join("t.json");
+        let o = acdf(&[
+            "render",
+            "--material",
+            "builtin:nickel",
+            "--strategies",
+            "product,mis-product",
+            "--plane",
+            "--width",
+            "12",
+            "--spp",
+            "4",
+            "--ref-spp",
+            "4",
+            "--envmap",
+            map.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+            "--out",
+            dir.path().to_str().unwrap(),
+        ]);
+        assert_ok(&o);
+        for name in ["product", "mis-product"] {
+            let exr = image::open(dir.path().join(format!("nickel-{name}.exr")))
+                .unwrap()
+                .to_rgb32f();
+            assert!(exr
+                .pixels()
+                .all(|p| p.0.iter().all(|c| c.is_finite() && *c >= 0.0)));
+        }
+        let v = read_json(&json);
+        for t in v["tables"].as_array().unwrap() {
+            let rows = t["rows"].as_array().unwrap();
+            assert_eq!(rows.len(), 2);
+            assert!(rows
+                .iter()
+                .all(|r| r["rmse"].as_f64().is_some_and(f64::is_finite)));
+        }
+    }
 }
 
 /// A white latitude-longitude map written as Radiance `.hdr` makes a

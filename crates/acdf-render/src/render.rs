@@ -1,9 +1,11 @@
 //! The renderer of `acdf render`: one sphere of a material, optionally on a
 //! square ground plane, lit only by an environment map at infinity, seen by
-//! a pinhole camera, shaded by direct lighting with one of six strategies
+//! a pinhole camera, shaded by direct lighting with one of eight strategies
 //! (BRDF sampling, light sampling, and their multiple importance sampling
 //! combinations: two draws weighted by the balance or the power heuristic,
-//! or one draw from their mixture, with a fixed or a per-pixel fraction).
+//! or one draw from their mixture, with a fixed or a per-pixel fraction;
+//! and product sampling of BRDF × environment, alone or in a mixture with
+//! light sampling).
 //!
 //! # Conventions
 //!
@@ -51,6 +53,9 @@
 
 use std::time::{Duration, Instant};
 
+use std::sync::Arc;
+
+use acdf::product::{ProductEnv, ProductQuery};
 use acdf_core::{Brdf, BxdfSampler, Frame, Light, Rgb, Vec2, Vec3};
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
@@ -99,7 +104,28 @@ pub enum Strategy {
     /// [`pooled_fractions`]). Each sample's c depends only on earlier
     /// samples, so each is an unbiased estimate, as with a fixed c.
     Adaptive,
+    /// Directions from the product sampler (`acdf-product`): one
+    /// [`ProductQuery`] per pixel, formed before its first sample over the
+    /// sphere's points at [`QUERY_POINTS`] of the pixel and kept for all
+    /// its samples ([`ProductLight`]).
+    Product,
+    /// One direction per camera sample, from the environment sampler
+    /// (the MIS partner) with probability [`PRODUCT_LIGHT_SHARE`] and from
+    /// the product sampler (itself a mixture with the BRDF sampler, its
+    /// defensive share) otherwise, divided by the mixture density: the
+    /// one-sample model, as [`Strategy::OneSample`], with the product in
+    /// the BRDF sampler's place.
+    MisProduct,
 }
+
+/// The probability with which [`Strategy::MisProduct`] draws from the
+/// environment sampler rather than the product. The product's blocks weigh
+/// a block by the BRDF density at a few points, which can miss a lobe
+/// narrower than a block; a sun in such a block is then reached only by
+/// the product's defensive BRDF draws, at a density far below its
+/// radiance (a firefly). A share of light draws bounds the estimate
+/// there, as MIS bounds BRDF sampling (docs/rendering.md).
+pub const PRODUCT_LIGHT_SHARE: f32 = 0.25;
 
 /// The probability with which [`Strategy::OneSample`] draws from the BRDF
 /// sampler unless told otherwise, and with which [`Strategy::Adaptive`]
@@ -197,13 +223,15 @@ pub fn mixture_pdf(c: f32, p_f: f32, p_l: f32) -> f32 {
 
 impl Strategy {
     /// Every strategy, in the order of tables.
-    pub const ALL: [Strategy; 6] = [
+    pub const ALL: [Strategy; 8] = [
         Strategy::Brdf,
         Strategy::Light,
         Strategy::Balance,
         Strategy::Power,
         Strategy::OneSample,
         Strategy::Adaptive,
+        Strategy::Product,
+        Strategy::MisProduct,
     ];
 
     /// The name on the command line.
@@ -215,6 +243,8 @@ impl Strategy {
             Strategy::Power => "mis-power",
             Strategy::OneSample => "mis-one-sample",
             Strategy::Adaptive => "mis-adaptive",
+            Strategy::Product => "product",
+            Strategy::MisProduct => "mis-product",
         }
     }
 
@@ -237,6 +267,19 @@ impl Strategy {
         )
     }
 
+    /// Whether it draws from the product sampler on the sphere (the plane
+    /// is then shaded by [`Strategy::Power`], with the MIS partner of the
+    /// environment).
+    pub fn is_product(self) -> bool {
+        matches!(self, Strategy::Product | Strategy::MisProduct)
+    }
+
+    /// Whether it draws from one sampler alone (brdf, light): what the
+    /// tables' "best single" column compares with.
+    pub fn is_single(self) -> bool {
+        matches!(self, Strategy::Brdf | Strategy::Light)
+    }
+
     /// The weight of a direction drawn by the technique of density `own`
     /// when the other technique has density `other` there: p/(p + q) for
     /// the balance heuristic (and for the one-sample strategy, whose
@@ -250,8 +293,8 @@ impl Strategy {
             return 0.0;
         }
         let (a, b) = match self {
-            Strategy::Brdf | Strategy::Light => return 1.0,
-            Strategy::Balance | Strategy::OneSample | Strategy::Adaptive => {
+            Strategy::Brdf | Strategy::Light | Strategy::Product => return 1.0,
+            Strategy::Balance | Strategy::OneSample | Strategy::Adaptive | Strategy::MisProduct => {
                 (own as f64, other as f64)
             }
             Strategy::Power => ((own as f64).powi(2), (other as f64).powi(2)),
@@ -409,16 +452,61 @@ pub struct Shader<'a> {
     /// BRDF sampler, in [0, 1] (0 is light sampling, 1 BRDF sampling; a
     /// value outside [0, 1] adds 0); unused by the other strategies.
     pub mis_fraction: f32,
+    /// The map's blocks for [`Strategy::Product`] and
+    /// [`Strategy::MisProduct`]; without them those strategies add 0 on
+    /// the sphere.
+    pub product: Option<ProductLight<'a>>,
 }
+
+/// The product sampler's side of a scene: the map's blocks and the
+/// defensive share δ of the queries.
+///
+/// Amortisation: a [`ProductQuery`] (one BRDF density per evaluation point
+/// of the map's blocks above the horizon) costs as much as a hundred
+/// camera samples, so each pixel forms one, before its first sample, over
+/// the sphere's shading points at its [`QUERY_POINTS`]
+/// ([`Shader::form_pixel_query`]; a pixel none of whose points meets the
+/// sphere forms it at its first sphere hit), and keeps it ([`Film`]) for
+/// all its samples, whose shading points lie anywhere in the pixel. Those
+/// draw from it with [`ProductQuery::sample_at`] in their own frame and
+/// with their own wo: the block part is a density of world directions and
+/// stays exact, the defensive part is the BRDF sampler at the actual
+/// point, so the density is exact and covers the lobe wherever the BRDF
+/// sampler does, and the estimate stays unbiased; only how well the blocks
+/// fit the product changes across the pixel.
+#[derive(Clone, Copy)]
+pub struct ProductLight<'a> {
+    /// The map's blocks.
+    pub env: &'a ProductEnv,
+    /// δ, in [0, 1].
+    pub defensive: f32,
+    /// Directions drawn per shading point, averaged, at least 1:
+    /// more share a camera ray and its hit among several directions.
+    pub draws: usize,
+}
+
+/// A pixel's product query (`None` before it is formed).
+pub type QuerySlot = Option<Arc<ProductQuery>>;
+
+/// The points of a pixel (fractions of its width and height from its top
+/// left) whose shading points a product query is formed over: the
+/// centres of its 2 × 2 quarters. A pixel's samples spread over it, and
+/// on a glossy sphere its lobe moves by several blocks of the map from
+/// one side to the other; a query formed at one point weighs the blocks
+/// of the lobe elsewhere in the pixel too little (docs/rendering.md).
+pub const QUERY_POINTS: [[f32; 2]; 4] = [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]];
 
 /// How a direction's estimate is weighted.
 #[derive(Clone, Copy)]
-enum Weighting {
+enum Weighting<'q> {
     /// By 1 / (the density of the technique that drew it).
     Single,
     /// By a two-sample heuristic of the two densities, over the drawing
     /// technique's density.
     Heuristic(Strategy),
+    /// An environment sampler's direction by 1 / the density of the
+    /// mixture of it (with this probability) and this product query.
+    WithProduct(&'q ProductQuery, ProductLight<'q>, f32),
     /// By 1 / (the one-sample mixture's density), c the BRDF sampler's
     /// probability.
     Mixture(f32),
@@ -439,15 +527,18 @@ struct ShadingPoint<'s> {
 impl Shader<'_> {
     /// One estimate of the radiance arriving at the camera along the ray
     /// from `o` in the unit direction `d`, with the uniform numbers of
-    /// `rng`. Finite and non-negative.
+    /// `rng`. Finite and non-negative. The product strategies form a
+    /// query for this ray alone.
     #[inline(always)]
     pub fn radiance(&self, o: Vec3, d: Vec3, rng: &mut impl Rng) -> Rgb {
-        self.estimate(o, d, rng, self.mis_fraction).0
+        self.estimate(o, d, rng, self.mis_fraction, &mut None).0
     }
 
     /// [`radiance`](Self::radiance) for a pixel whose fraction moments are
-    /// `moments`: [`Strategy::Adaptive`] draws with the fraction `c` and
-    /// adds the estimate to them; the other strategies ignore both.
+    /// `moments` and whose product query is `query`: [`Strategy::Adaptive`]
+    /// draws with the fraction `c` and adds the estimate to the moments;
+    /// the product strategies draw from the query (formed at this sample's
+    /// shading point if the pixel has none yet); the other strategies ignore all three.
     #[inline(always)]
     pub fn pixel_radiance(
         &self,
@@ -456,11 +547,12 @@ impl Shader<'_> {
         rng: &mut impl Rng,
         c: f32,
         moments: &mut FractionMoments,
+        query: &mut QuerySlot,
     ) -> Rgb {
         if self.strategy != Strategy::Adaptive {
-            return self.radiance(o, d, rng);
+            return self.estimate(o, d, rng, self.mis_fraction, query).0;
         }
-        let (v, [p_f, p_l]) = self.estimate(o, d, rng, c);
+        let (v, [p_f, p_l]) = self.estimate(o, d, rng, c, query);
         moments.add(v, c, p_f, p_l);
         v
     }
@@ -481,7 +573,14 @@ impl Shader<'_> {
     /// and light densities of the drawn direction for those strategies
     /// (zeros otherwise, or when the estimate is 0 before both were found).
     #[inline(always)]
-    fn estimate(&self, o: Vec3, d: Vec3, rng: &mut impl Rng, c: f32) -> (Rgb, [f32; 2]) {
+    fn estimate(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        rng: &mut impl Rng,
+        c: f32,
+        query: &mut QuerySlot,
+    ) -> (Rgb, [f32; 2]) {
         let none = [0.0; 2];
         let (x, n, surface, on_sphere) = match self.geometry.trace(o, d) {
             Hit::Sky => return (self.light.radiance(d), none),
@@ -502,7 +601,13 @@ impl Shader<'_> {
             unoccluded: on_sphere && !self.geometry.plane,
         };
         let mut pair = || Vec2::new(rng.random(), rng.random());
-        let (sum, pdfs) = match self.strategy {
+        // The plane keeps a two-sampler strategy under the product ones.
+        let strategy = if self.strategy.is_product() && !on_sphere {
+            Strategy::Power
+        } else {
+            self.strategy
+        };
+        let (sum, pdfs) = match strategy {
             Strategy::Brdf => self.brdf_draw(&at, pair(), Weighting::Single),
             Strategy::Light => self.light_draw(&at, pair(), Weighting::Single),
             Strategy::Balance | Strategy::Power => {
@@ -524,12 +629,136 @@ impl Shader<'_> {
                     (Rgb::ZERO, none)
                 }
             }
+            Strategy::Product | Strategy::MisProduct => {
+                let (Some(light), Some(q)) = (self.product, self.query_for(&at, query)) else {
+                    return (Rgb::ZERO, none);
+                };
+                let draws = light.draws.max(1);
+                let mut sum = Rgb::ZERO;
+                for _ in 0..draws {
+                    let u = pair();
+                    sum += if strategy == Strategy::Product {
+                        self.product_draw(&at, q, light, u, 0.0)
+                    } else {
+                        // As the one-sample strategy: the first number
+                        // picks the technique and is stretched back.
+                        let c = PRODUCT_LIGHT_SHARE;
+                        if u.x < c {
+                            let v = Vec2::new(u.x / c, u.y);
+                            self.light_draw(&at, v, Weighting::WithProduct(q, light, c))
+                                .0
+                        } else {
+                            let v = Vec2::new((u.x - c) / (1.0 - c), u.y);
+                            self.product_draw(&at, q, light, v, c)
+                        }
+                    };
+                }
+                (sum / draws as f32, none)
+            }
         };
         if sum.is_finite() {
             (sum.max(Rgb::ZERO), pdfs)
         } else {
             (Rgb::ZERO, none)
         }
+    }
+
+    /// The pixel's product query, formed at `at` if it has none yet;
+    /// `None` without [`Shader::product`].
+    #[inline]
+    fn query_for<'q>(
+        &self,
+        at: &ShadingPoint,
+        slot: &'q mut QuerySlot,
+    ) -> Option<&'q ProductQuery> {
+        let p = self.product?;
+        if slot.is_none() {
+            *slot = Some(Arc::new(ProductQuery::build_over(
+                p.env,
+                &[(at.frame, at.wo)],
+                at.surface.sampler,
+                p.defensive,
+            )));
+        }
+        slot.as_deref()
+    }
+
+    /// Form the product query of pixel (`col`, `row`) of an image of
+    /// `size`, if the strategy draws from one and the pixel has none: over
+    /// the sphere's shading points at the pixel's [`QUERY_POINTS`]
+    /// ([`ProductQuery::build_over`]). A pixel none of whose points meets
+    /// the sphere is left without one; its first sphere hit forms it.
+    pub fn form_pixel_query(
+        &self,
+        camera: &Camera,
+        (col, row): (usize, usize),
+        (width, height): (usize, usize),
+        slot: &mut QuerySlot,
+    ) {
+        let Some(p) = self.product else {
+            return;
+        };
+        if !self.strategy.is_product() || slot.is_some() {
+            return;
+        }
+        let (width, height) = (width.max(1), height.max(1));
+        let aspect = width as f32 / height as f32;
+        let at: Vec<(Frame, Vec3)> = QUERY_POINTS
+            .iter()
+            .filter_map(|&[fx, fy]| {
+                let p = Vec2::new(
+                    (col as f32 + fx) / width as f32,
+                    (row as f32 + fy) / height as f32,
+                );
+                let d = camera.direction(p, aspect);
+                let Hit::Sphere(_, n) = self.geometry.trace(camera.eye, d) else {
+                    return None;
+                };
+                let frame = Frame::from_z(n);
+                let wo = frame.to_local(-d);
+                (wo.z > 0.0).then_some((frame, wo))
+            })
+            .collect();
+        if !at.is_empty() {
+            *slot = Some(Arc::new(ProductQuery::build_over(
+                p.env,
+                &at,
+                self.sphere.sampler,
+                p.defensive,
+            )));
+        }
+    }
+
+    /// The estimate of a direction drawn from the product query `q` at
+    /// `at` (its own frame and wo, [`ProductQuery::sample_at`]) from `u`:
+    /// f L V cos / p, with p the mixture (1 − c) p + c p_l when the
+    /// environment sampler draws with probability `c` > 0.
+    #[inline(always)]
+    fn product_draw(
+        &self,
+        at: &ShadingPoint,
+        q: &ProductQuery,
+        light: ProductLight,
+        u: Vec2,
+        c: f32,
+    ) -> Rgb {
+        let Some(s) = q.sample_at(light.env, at.surface.sampler, &at.frame, at.wo, u) else {
+            return Rgb::ZERO;
+        };
+        let wi = at.frame.to_world(s.wi);
+        if !self.visible(at, wi) {
+            return Rgb::ZERO;
+        }
+        let pdf = if c > 0.0 {
+            mixture_pdf(c, self.light.pdf(Some(at.n), wi), s.pdf)
+        } else {
+            s.pdf
+        };
+        if !(pdf > 0.0) {
+            return Rgb::ZERO;
+        }
+        let f = at.surface.brdf.eval(at.wo, s.wi);
+        f * self.light.radiance(wi) * (s.wi.z / pdf)
     }
 
     /// Whether the environment is seen from `at` in the world direction
@@ -563,6 +792,8 @@ impl Shader<'_> {
                 s.pdf,
                 [0.0; 2],
             ),
+            // The product is not a partner of the BRDF sampler's draws.
+            Weighting::WithProduct(..) => (0.0, s.pdf, [0.0; 2]),
             Weighting::Mixture(c) => {
                 let p_l = if c < 1.0 {
                     self.light.pdf(Some(at.n), wi)
@@ -607,6 +838,10 @@ impl Shader<'_> {
                 };
                 (1.0, mixture_pdf(c, p_f, s.pdf), [p_f, s.pdf])
             }
+            Weighting::WithProduct(q, light, c) => {
+                let p = q.pdf_at(light.env, at.surface.sampler, &at.frame, at.wo, wi);
+                (1.0, mixture_pdf(c, s.pdf, p), [0.0; 2])
+            }
         };
         if !(w > 0.0 && pdf > 0.0) {
             return none;
@@ -629,51 +864,141 @@ impl Shader<'_> {
     /// moments each pass of [`Strategy::Adaptive`] starts from, those of
     /// the film the render made ([`Film::moments`]), so that the timing
     /// draws with the fractions the render settled on; `None` (or a wrong
-    /// length) starts every pixel from none.
+    /// length) starts every pixel from none. `queries` are the pixels'
+    /// product queries likewise ([`Film::queries`]): with them the figure
+    /// leaves out forming the queries, which
+    /// [`seconds_per_pixel_setup`](Self::seconds_per_pixel_setup) measures.
     pub fn seconds_per_camera_sample(
+        &self,
+        camera: &Camera,
+        size: (usize, usize),
+        seed: u64,
+        repeats: usize,
+        moments: Option<&[FractionMoments]>,
+        queries: Option<&[QuerySlot]>,
+    ) -> f64 {
+        let (width, height) = (size.0.max(1), size.1.max(1));
+        let rounds = TIMING_SAMPLES.div_ceil(width * height);
+        self.timed_passes(camera, size, seed, repeats, rounds, moments, queries)
+            / (rounds * width * height) as f64
+    }
+
+    /// CPU seconds per pixel, on the calling thread, of what a pixel
+    /// costs once whatever its number of samples: forming its product
+    /// query ([`Shader::form_pixel_query`], [`Strategy::Product`],
+    /// [`Strategy::MisProduct`]; 0 for the other strategies). The fastest
+    /// of `repeats` timed passes of one sample per pixel starting without
+    /// queries, less the same pass with the queries formed. With
+    /// [`seconds_per_camera_sample`](Self::seconds_per_camera_sample) t,
+    /// a budget of B seconds for P pixels buys (B / P − setup) / t samples
+    /// per pixel.
+    pub fn seconds_per_pixel_setup(
+        &self,
+        camera: &Camera,
+        size: (usize, usize),
+        seed: u64,
+        repeats: usize,
+    ) -> f64 {
+        if !self.strategy.is_product() {
+            return 0.0;
+        }
+        let pixels = size.0.max(1) * size.1.max(1);
+        let mut formed: Vec<QuerySlot> = vec![None; pixels];
+        // Form the queries the timed passes then draw from.
+        let mut moments = vec![FractionMoments::default(); pixels];
+        let fractions = vec![self.mis_fraction; pixels];
+        self.one_pass(camera, size, seed, 0, &fractions, &mut moments, &mut formed);
+        let with = self.timed_passes(camera, size, seed, repeats, 1, None, Some(&formed));
+        let without = self.timed_passes(camera, size, seed, repeats, 1, None, None);
+        (without - with).max(0.0) / pixels as f64
+    }
+
+    /// The fastest of `repeats` timed runs of `rounds` passes of one
+    /// sample per pixel, each run starting from `moments` and `queries`
+    /// (none where `None` or of a wrong length); CPU seconds of the
+    /// calling thread.
+    #[allow(clippy::too_many_arguments)]
+    fn timed_passes(
         &self,
         camera: &Camera,
         (width, height): (usize, usize),
         seed: u64,
         repeats: usize,
+        rounds: usize,
         moments: Option<&[FractionMoments]>,
+        queries: Option<&[QuerySlot]>,
     ) -> f64 {
-        let (width, height) = (width.max(1), height.max(1));
-        let pixels = width * height;
-        let rounds = TIMING_SAMPLES.div_ceil(pixels);
-        let aspect = width as f32 / height as f32;
+        let pixels = width.max(1) * height.max(1);
         let start_moments = match moments {
             Some(m) if m.len() == pixels => m.to_vec(),
             _ => vec![FractionMoments::default(); pixels],
         };
-        let fractions = self.fractions(&start_moments, width);
+        let start_queries = match queries {
+            Some(q) if q.len() == pixels => q.to_vec(),
+            _ => vec![None; pixels],
+        };
+        let fractions = self.fractions(&start_moments, width.max(1));
         let mut best = f64::INFINITY;
         for _ in 0..repeats.max(1) {
             let mut acc = Rgb::ZERO;
             let mut moments = start_moments.clone();
+            let mut queries = start_queries.clone();
             let start = acdf_experiments::efficiency::thread_seconds();
             for round in 0..rounds {
-                for pixel in 0..pixels {
-                    let mut rng = rand_pcg::Pcg64::seed_from_u64(pixel_seed(
-                        seed ^ 0x7133_0000,
-                        round as u64,
-                        pixel,
-                    ));
-                    let (row, col) = (pixel / width, pixel % width);
-                    let p = Vec2::new(
-                        (col as f32 + rng.random::<f32>()) / width as f32,
-                        (row as f32 + rng.random::<f32>()) / height as f32,
-                    );
-                    let d = camera.direction(p, aspect);
-                    let c = fractions[pixel];
-                    acc += self.pixel_radiance(camera.eye, d, &mut rng, c, &mut moments[pixel]);
-                }
+                acc += self.one_pass(
+                    camera,
+                    (width, height),
+                    seed,
+                    round,
+                    &fractions,
+                    &mut moments,
+                    &mut queries,
+                );
             }
             let t = acdf_experiments::efficiency::thread_seconds() - start;
             std::hint::black_box(acc);
             best = best.min(t);
         }
-        best / (rounds * pixels) as f64
+        best
+    }
+
+    /// One sample of every pixel on the calling thread, with the uniform
+    /// numbers of (`seed`, `round`) and the pixels' states; the sum of the
+    /// estimates.
+    #[allow(clippy::too_many_arguments)]
+    fn one_pass(
+        &self,
+        camera: &Camera,
+        (width, height): (usize, usize),
+        seed: u64,
+        round: usize,
+        fractions: &[f32],
+        moments: &mut [FractionMoments],
+        queries: &mut [QuerySlot],
+    ) -> Rgb {
+        let (width, height) = (width.max(1), height.max(1));
+        let aspect = width as f32 / height as f32;
+        let mut acc = Rgb::ZERO;
+        for pixel in 0..width * height {
+            let mut rng =
+                rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed ^ 0x7133_0000, round as u64, pixel));
+            let (row, col) = (pixel / width, pixel % width);
+            self.form_pixel_query(camera, (col, row), (width, height), &mut queries[pixel]);
+            let p = Vec2::new(
+                (col as f32 + rng.random::<f32>()) / width as f32,
+                (row as f32 + rng.random::<f32>()) / height as f32,
+            );
+            let d = camera.direction(p, aspect);
+            acc += self.pixel_radiance(
+                camera.eye,
+                d,
+                &mut rng,
+                fractions[pixel],
+                &mut moments[pixel],
+                &mut queries[pixel],
+            );
+        }
+        acc
     }
 }
 
@@ -692,6 +1017,10 @@ pub struct Film {
     sums: Vec<DVec3>,
     squares: Vec<DVec3>,
     moments: Vec<FractionMoments>,
+    /// Per pixel, the product query of [`Strategy::Product`] and
+    /// [`Strategy::MisProduct`] (shared by the film's clones), formed
+    /// before its first sample ([`Shader::form_pixel_query`]).
+    queries: Vec<QuerySlot>,
     samples_per_pixel: usize,
 }
 
@@ -752,8 +1081,9 @@ fn pixel_seed(seed: u64, pass: u64, pixel: usize) -> u64 {
 /// before rendering.
 pub fn render_memory_estimate(width: usize, height: usize, films: usize, images: usize) -> u64 {
     let pixels = (width as u64).saturating_mul(height as u64);
-    let per_pixel = ((2 * std::mem::size_of::<DVec3>() + std::mem::size_of::<FractionMoments>())
-        as u64)
+    let per_pixel = ((2 * std::mem::size_of::<DVec3>()
+        + std::mem::size_of::<FractionMoments>()
+        + std::mem::size_of::<QuerySlot>()) as u64)
         .saturating_mul(films as u64)
         .saturating_add(3u64.saturating_mul(images as u64));
     pixels.saturating_mul(per_pixel)
@@ -768,6 +1098,7 @@ impl Film {
             sums: vec![DVec3::ZERO; width * height],
             squares: vec![DVec3::ZERO; width * height],
             moments: vec![FractionMoments::default(); width * height],
+            queries: vec![None; width * height],
             samples_per_pixel: 0,
         }
     }
@@ -780,6 +1111,7 @@ impl Film {
             height,
             squares: sums.iter().map(|v| *v * *v).collect(),
             moments: vec![FractionMoments::default(); sums.len()],
+            queries: vec![None; sums.len()],
             sums,
             samples_per_pixel: 1,
         }
@@ -801,6 +1133,17 @@ impl Film {
         &self.moments
     }
 
+    /// The product query of every pixel, row-major (all `None` unless the
+    /// film was rendered with a product strategy).
+    pub fn queries(&self) -> &[QuerySlot] {
+        &self.queries
+    }
+
+    /// Forget the product queries (their memory), keeping the image.
+    pub fn drop_queries(&mut self) {
+        self.queries.iter_mut().for_each(|q| *q = None);
+    }
+
     /// Add `spp` samples per pixel of `shader` seen by `camera`, drawn with
     /// uniform numbers that depend only on (`seed`, `pass`, pixel), in
     /// parallel over rows.
@@ -812,31 +1155,39 @@ impl Film {
             .par_chunks_mut(width.max(1))
             .zip(self.squares.par_chunks_mut(width.max(1)))
             .zip(self.moments.par_chunks_mut(width.max(1)))
+            .zip(self.queries.par_chunks_mut(width.max(1)))
             .zip(fractions.par_chunks(width.max(1)))
             .enumerate()
-            .for_each(|(row, (((sums, squares), moments), fractions))| {
-                let pixels = sums
-                    .iter_mut()
-                    .zip(squares.iter_mut())
-                    .zip(moments)
-                    .zip(fractions);
-                for (col, (((sum, sq), moments), &c)) in pixels.enumerate() {
-                    let mut rng =
-                        rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed, pass, row * width + col));
-                    for _ in 0..spp {
-                        let p = Vec2::new(
-                            (col as f32 + rng.random::<f32>()) / width as f32,
-                            (row as f32 + rng.random::<f32>()) / height as f32,
-                        );
-                        let d = camera.direction(p, aspect);
-                        let v = shader
-                            .pixel_radiance(camera.eye, d, &mut rng, c, moments)
-                            .as_dvec3();
-                        *sum += v;
-                        *sq += v * v;
+            .for_each(
+                |(row, ((((sums, squares), moments), queries), fractions))| {
+                    let pixels = sums
+                        .iter_mut()
+                        .zip(squares.iter_mut())
+                        .zip(moments)
+                        .zip(queries)
+                        .zip(fractions);
+                    for (col, ((((sum, sq), moments), query), &c)) in pixels.enumerate() {
+                        shader.form_pixel_query(camera, (col, row), (width, height), query);
+                        let mut rng = rand_pcg::Pcg64::seed_from_u64(pixel_seed(
+                            seed,
+                            pass,
+                            row * width + col,
+                        ));
+                        for _ in 0..spp {
+                            let p = Vec2::new(
+                                (col as f32 + rng.random::<f32>()) / width as f32,
+                                (row as f32 + rng.random::<f32>()) / height as f32,
+                            );
+                            let d = camera.direction(p, aspect);
+                            let v = shader
+                                .pixel_radiance(camera.eye, d, &mut rng, c, moments, query)
+                                .as_dvec3();
+                            *sum += v;
+                            *sq += v * v;
+                        }
                     }
-                }
-            });
+                },
+            );
         self.samples_per_pixel += spp;
     }
 
@@ -1033,7 +1384,6 @@ mod tests {
     use acdf_lights::{EnvMap, EnvironmentLight, TableKind};
     use acdf_materials::analytic::Lambert;
     use acdf_uniform::{uniform_env_sampler, UniformEnvSampler};
-    use std::sync::Arc;
 
     /// The sky of the unbiasedness test: radiance `SKY` above the horizon,
     /// `GROUND` below, in a 32 × 16 map whose rows split at the equator.
@@ -1099,13 +1449,14 @@ mod tests {
                 let want = want(normal);
                 let (mut s, mut s2) = (0.0f64, 0.0f64);
                 let mut moments = FractionMoments::default();
+                let mut query = None;
                 let mut c = shader.mis_fraction;
                 for k in 0..n {
                     if k % 16 == 0 {
                         c = moments.best(shader.mis_fraction);
                     }
                     let v = shader
-                        .pixel_radiance(camera.eye, d, &mut rng, c, &mut moments)
+                        .pixel_radiance(camera.eye, d, &mut rng, c, &mut moments, &mut query)
                         .x as f64;
                     s += v;
                     s2 += v * v;
@@ -1156,6 +1507,7 @@ mod tests {
             light,
             strategy,
             mis_fraction: DEFAULT_MIS_FRACTION,
+            product: None,
         };
         let light: &'static dyn Light = Box::leak(Box::new(light));
         let comp: &'static dyn Light = Box::leak(Box::new(comp));
@@ -1261,6 +1613,7 @@ mod tests {
                 light,
                 strategy,
                 mis_fraction: c,
+                product: None,
             };
             pooled_z_against(&shader, 400, |n| ALBEDO * irradiance_over_pi(n))
         };
@@ -1321,6 +1674,7 @@ mod tests {
                 light: &light,
                 strategy,
                 mis_fraction,
+                product: None,
             };
             let camera = Camera::default();
             let mut nonzero = 0;
@@ -1469,6 +1823,172 @@ mod tests {
         assert_eq!(m, FractionMoments::default());
     }
 
+    /// The sphere alone, of `brdf` drawn by `sampler`, under `light`, with
+    /// the product's blocks `env` (δ = 0.15, `draws` per shading point).
+    fn sphere_with_product<'a>(
+        brdf: &'a dyn Brdf,
+        sampler: &'a dyn BxdfSampler,
+        light: &'a dyn Light,
+        strategy: Strategy,
+        env: &'a ProductEnv,
+        draws: usize,
+    ) -> Shader<'a> {
+        let surface = Surface { brdf, sampler };
+        Shader {
+            geometry: Geometry { plane: false },
+            sphere: surface,
+            plane: surface,
+            light,
+            strategy,
+            mis_fraction: DEFAULT_MIS_FRACTION,
+            product: Some(ProductLight {
+                env,
+                defensive: 0.15,
+                draws,
+            }),
+        }
+    }
+
+    /// A BRDF sampler that reports twice its density: the mutant the
+    /// product strategies must be seen to get wrong.
+    struct DoubledPdf<S>(S);
+    impl<S: BxdfSampler> BxdfSampler for DoubledPdf<S> {
+        fn name(&self) -> &str {
+            "doubled"
+        }
+        fn sample(&self, wo: Vec3, u: Vec2) -> Option<acdf_core::BxdfSample> {
+            self.0.sample(wo, u).map(|mut s| {
+                s.pdf *= 2.0;
+                s
+            })
+        }
+        fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+            2.0 * self.0.pdf(wo, wi)
+        }
+        fn storage_bytes(&self) -> usize {
+            0
+        }
+    }
+
+    /// The product strategies are unbiased: on the Lambertian sphere under
+    /// the split sky, with cosine sampling as the BRDF sampler, |pooled z|
+    /// < 4 (two-sided significance 6e-5) at 64 points of the sphere, each
+    /// ray's query formed at its first hit; with one and with 4 draws per
+    /// shading point, and with blocks coarser than the map. A BRDF sampler
+    /// that misreports its density by 2x is rejected (|z| > 4), and so is,
+    /// for mis-product, an environment partner that does.
+    #[test]
+    fn product_strategies_are_unbiased_and_a_wrong_pdf_is_caught() {
+        let map = split_map();
+        let lambert = Lambert::new("l", Rgb::splat(ALBEDO)).unwrap();
+        let light = EnvironmentLight::new(
+            map.clone(),
+            uniform_env_sampler(&map, TableKind::Compensated).unwrap(),
+        );
+        let doubled = DoubledPdf(acdf_cosine::CosineSampler);
+        let wrong = WrongPdf(EnvironmentLight::new(
+            map.clone(),
+            uniform_env_sampler(&map, TableKind::Compensated).unwrap(),
+        ));
+        let z_of = |strategy, sampler: &dyn BxdfSampler, light: &dyn Light, blocks, draws| {
+            let env = ProductEnv::new(map.clone(), blocks, 1).unwrap();
+            let shader = sphere_with_product(&lambert, sampler, light, strategy, &env, draws);
+            pooled_z(&shader, 300)
+        };
+        for strategy in [Strategy::Product, Strategy::MisProduct] {
+            for (blocks, draws) in [(32, 1), (8, 4)] {
+                let z = z_of(strategy, &acdf_cosine::CosineSampler, &light, blocks, draws);
+                eprintln!("{strategy:?} {blocks} blocks, {draws} draws: pooled z {z:.2}");
+                assert!(z.abs() < 4.0, "{strategy:?} {blocks} {draws}: pooled z {z}");
+            }
+            let z = z_of(strategy, &doubled, &light, 32, 1);
+            eprintln!("{strategy:?}, BRDF pdf doubled: pooled z {z:.2}");
+            assert!(z.abs() > 4.0, "{strategy:?} with a wrong pdf: pooled z {z}");
+        }
+        let z = z_of(
+            Strategy::MisProduct,
+            &acdf_cosine::CosineSampler,
+            &wrong,
+            32,
+            1,
+        );
+        eprintln!("MisProduct, light pdf doubled: pooled z {z:.2}");
+        assert!(
+            z.abs() > 4.0,
+            "mis-product with a wrong light pdf: pooled z {z}"
+        );
+    }
+
+    /// A small render of built-in nickel under a map with a sun, each
+    /// pixel's query formed over its [`QUERY_POINTS`] and reused for all
+    /// its samples: product and mis-product converge to the image
+    /// mis-power does. Over the pixels, the pooled z of the mean
+    /// difference is below 4 and the mean of the squared per-pixel z
+    /// below 1.5 (about 1 when the images agree; seeds fixed); a pixel's
+    /// z is its mean difference over the standard error from both films'
+    /// sample variances.
+    #[test]
+    fn product_renders_converge_to_the_mis_power_image() {
+        let map = Arc::new(
+            EnvMap::from_fn(64, 32, |k, j| {
+                Rgb::splat(if (k, j) == (40, 9) {
+                    3000.0
+                } else if j < 16 {
+                    0.6 + 0.01 * k as f32
+                } else {
+                    0.2
+                })
+            })
+            .unwrap(),
+        );
+        let nickel = acdf_materials::builtin("nickel").unwrap();
+        let m = acdf::material::Material {
+            spec: acdf::spec::MaterialSpec::Builtin("nickel".into()),
+            brdf: nickel.clone(),
+            rgl: None,
+        };
+        let sampler = acdf::registry::make_sampler("adaptive", &m, &Default::default()).unwrap();
+        let o = acdf::env_registry::EnvSamplerOptions::default();
+        let light = EnvironmentLight::new(
+            map.clone(),
+            acdf::env_registry::make_env_sampler("adaptive-comp", &map, &o).unwrap(),
+        );
+        let env = ProductEnv::new(map.clone(), 32, 1).unwrap();
+        let shader =
+            |strategy| sphere_with_product(nickel.as_ref(), &sampler, &light, strategy, &env, 1);
+        let camera = Camera::default();
+        let (size, spp) = ((16, 12), 256);
+        let budget = Budget { spp, time: None };
+        let film = |s, seed| render(&shader(s), &camera, size, budget, seed, None, |_| {}).last;
+        let base = film(Strategy::Power, 1);
+        for strategy in [Strategy::Product, Strategy::MisProduct] {
+            let other = film(strategy, 2);
+            assert!(other.queries().iter().filter(|q| q.is_some()).count() > 40);
+            let (a, b) = (base.radiance(), other.radiance());
+            let (va, vb) = (base.sample_variance(), other.sample_variance());
+            let (mut diff, mut var, mut z2, mut pixels) = (0.0f64, 0.0f64, 0.0f64, 0usize);
+            for i in 0..a.len() {
+                let (d, v) = (
+                    (b[i].x - a[i].x) as f64,
+                    (va[i].x + vb[i].x) as f64 / spp as f64,
+                );
+                if v > 0.0 {
+                    diff += d;
+                    var += v;
+                    z2 += d * d / v;
+                    pixels += 1;
+                }
+            }
+            let (z, mean_z2) = (diff / var.sqrt(), z2 / pixels as f64);
+            eprintln!("{strategy:?}: pooled z {z:.2}, mean z^2 {mean_z2:.2} over {pixels} pixels");
+            assert!(pixels > 40);
+            assert!(
+                z.abs() < 4.0 && mean_z2 < 1.5,
+                "{strategy:?}: {z} {mean_z2}"
+            );
+        }
+    }
+
     /// Where one technique is exact the adaptive strategy finds it: a
     /// Lambertian sphere under a constant sky, where cosine sampling has
     /// zero variance and the sin θ-weighted light table does not. After a
@@ -1492,6 +2012,7 @@ mod tests {
             light: &light,
             strategy,
             mis_fraction: DEFAULT_MIS_FRACTION,
+            product: None,
         };
         let camera = Camera::default();
         let size = (16, 16);

@@ -167,6 +167,11 @@ impl ProductEnv {
         (self.columns, self.rows)
     }
 
+    /// Evaluation points per block, s².
+    pub fn points_per_block(&self) -> usize {
+        self.points_per_block
+    }
+
     /// The number of blocks.
     pub fn block_count(&self) -> usize {
         self.light.len()
@@ -197,7 +202,6 @@ impl ProductEnv {
         let mut out = LocalPoints {
             dirs: Vec::new(),
             blocks: Vec::new(),
-            points_per_block: self.points_per_block,
         };
         for (i, &p) in self.points.iter().enumerate() {
             let local = frame.to_local(p);
@@ -245,7 +249,6 @@ impl ProductEnv {
 pub struct LocalPoints {
     pub(crate) dirs: Vec<Vec3>,
     pub(crate) blocks: Vec<u32>,
-    pub(crate) points_per_block: usize,
 }
 
 impl LocalPoints {

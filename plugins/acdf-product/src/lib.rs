@@ -31,7 +31,7 @@ mod env;
 mod query;
 
 pub use env::{LocalPoints, ProductEnv};
-pub use query::ProductQuery;
+pub use query::{ProductDraw, ProductQuery};
 
 use acdf_core::{is_valid_outgoing, BxdfSample, BxdfSampler, Error, Frame, Result, Vec2, Vec3};
 use std::sync::{Arc, Mutex};
