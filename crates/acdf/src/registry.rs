@@ -285,7 +285,7 @@ any_sampler! {
     Adaptive(AdaptiveBrdfSampler),
     /// `rgl`: the RGL `.bsdf` file's own sampler.
     Rgl(RglSampler),
-    /// `lobes`: a cosine lobe and one to three GGX lobes fitted per material.
+    /// `lobes`: a cosine lobe and up to three GGX lobes fitted per material.
     Lobes(LobesSampler),
     /// `outgoing:SIMPLIFIER`: θ_o breakpoints per material, blended slices.
     Outgoing(OutgoingSampler),
@@ -468,7 +468,7 @@ pub static SAMPLERS: &[SamplerFamily] = &[
     },
     SamplerFamily {
         name: acdf_lobes::persist::KIND,
-        description: "a cosine lobe and 1 to 3 GGX lobes fitted per material, 32 bytes",
+        description: "a cosine lobe and up to 3 GGX lobes fitted per material, 32 bytes",
         simplifiers: false,
         report_rank: Some(4),
         in_render: false,
