@@ -696,18 +696,17 @@ fn survey_writes_csv_json_figures_and_a_summary() {
     assert!(png.width() > 100 && png.height() > 100);
 }
 
-/// The storage frontier on two built-in materials at a small resolution:
-/// the CSV's columns, one row per material, family and level, a level
-/// reached exactly when the chosen sampler's relative efficiency reaches
-/// it, and storage that never shrinks as the level rises.
-#[test]
-fn survey_frontier_is_monotone_in_the_level() {
-    let dir = tempfile::tempdir().unwrap();
-    let prefix = dir.path().join("small");
-    let o = acdf(&[
+/// `acdf survey --frontier` on `materials` at a small resolution, quadrature
+/// and timing, with `extra` arguments, writing PREFIX.*.
+fn small_frontier(
+    materials: &str,
+    extra: &[&str],
+    prefix: &std::path::Path,
+) -> std::process::Output {
+    let mut args = vec![
         "survey",
         "--materials",
-        "builtin:nickel,builtin:gray-plastic",
+        materials,
         "--resolution",
         "8x1x32x8",
         "--reference",
@@ -721,7 +720,20 @@ fn survey_frontier_is_monotone_in_the_level() {
         "--frontier",
         "--frontier-out",
         prefix.to_str().unwrap(),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    acdf(&args)
+}
+
+/// The storage frontier on two built-in materials at a small resolution:
+/// the CSV's columns, one row per material, family and level, a level
+/// reached exactly when the chosen sampler's relative efficiency reaches
+/// it, and storage that never shrinks as the level rises.
+#[test]
+fn survey_frontier_is_monotone_in_the_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let prefix = dir.path().join("small");
+    let o = small_frontier("builtin:nickel,builtin:gray-plastic", &[], &prefix);
     assert_ok(&o);
     let out = stdout(&o);
     assert!(out.contains("frontier of 2 materials x"), "{out}");
@@ -794,26 +806,11 @@ fn survey_frontier_is_monotone_in_the_level() {
     assert_one_line_error(&o, "fast");
 
     // --families measures only the families named, and refuses others.
-    let o = acdf(&[
-        "survey",
-        "--materials",
+    let o = small_frontier(
         "builtin:nickel",
-        "--resolution",
-        "8x1x32x8",
-        "--reference",
-        "uniform@8x4x32x8",
-        "--quadrature",
-        "64x32",
-        "--timing-samples",
-        "64",
-        "--timing-repeats",
-        "2",
-        "--frontier",
-        "--families",
-        "lobes,outgoing:chi2",
-        "--frontier-out",
-        prefix.to_str().unwrap(),
-    ]);
+        &["--families", "lobes,outgoing:chi2"],
+        &prefix,
+    );
     assert_ok(&o);
     let csv = std::fs::read_to_string(dir.path().join("small.csv")).unwrap();
     let mut families: Vec<&str> = csv
