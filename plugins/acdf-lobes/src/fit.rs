@@ -54,9 +54,9 @@ impl Default for FitOptions {
     /// θ_o 10, 30, 50, 70 and 85°; 256 θ_h rows × 32 φ_h columns; 40
     /// iterations per parameter; a further lobe must gain 2%; a draw with
     /// GGX lobes takes twice the time of one without, whatever their
-    /// number (the ns/sample of `acdf report --samples 0 --sampler lobes`:
-    /// about 22 with none, 37 to 48 with one to three, on the materials of
-    /// `docs/results.md`).
+    /// number (the ns/sample of `acdf report --samples 0 --sampler lobes`
+    /// over the 100 MERL materials: 16 to 17 with none, 38 to 55 with one
+    /// to three; `docs/results.md`).
     fn default() -> Self {
         FitOptions {
             theta_o_degrees: vec![10.0, 30.0, 50.0, 70.0, 85.0],
