@@ -55,7 +55,7 @@ impl Default for FitOptions {
     /// iterations per parameter; a further lobe must gain 2%; a draw with
     /// GGX lobes takes twice the time of one without, whatever their
     /// number (the ns/sample of `acdf report --samples 0 --sampler lobes`
-    /// over the 100 MERL materials: 16 to 17 with none, 38 to 55 with one
+    /// over the 100 MERL materials: 16 to 18 with none, 27 to 59 with one
     /// to three; `docs/results.md`).
     fn default() -> Self {
         FitOptions {
