@@ -292,6 +292,13 @@ fn run_scene(
     let camera = Camera::default();
     let size = (a.width, height);
     acdf_io::fsio::ensure_folder(&a.out)?;
+    // The folder of --json too, so that a path that cannot be written fails
+    // before the renders, not after them.
+    if let Some(dir) = a.json.as_deref().and_then(Path::parent) {
+        if !dir.as_os_str().is_empty() {
+            acdf_io::fsio::ensure_folder(dir)?;
+        }
+    }
     let label = file_stem_safe(&m.label());
     let samplers_of = |s: Strategy| match s {
         Strategy::Brdf => a.brdf_sampler.clone(),

@@ -1302,6 +1302,38 @@ fn render_exports_a_mitsuba_scene() {
     assert_one_line_error(&o, "builtin:lambert");
 }
 
+/// A `--json` path that cannot be written fails before any render: a
+/// one-line error naming the file in its way, and no image in `--out`.
+#[test]
+fn render_json_that_cannot_be_written_fails_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let blocker = dir.path().join("a-file");
+    std::fs::write(&blocker, b"x").unwrap();
+    let out = dir.path().join("out");
+    let json = blocker.join("tables.json");
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:nickel",
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--spp",
+        "2",
+        "--ref-spp",
+        "8",
+        "--json",
+        json.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, "a-file");
+    let images = std::fs::read_dir(&out).map_or(0, |d| d.count());
+    assert_eq!(images, 0);
+    assert_eq!(std::fs::read(&blocker).unwrap(), b"x");
+}
+
 /// `acdf build` writes a sampler file; `--sampler-file` loads it and samples
 /// exactly as the freshly built sampler does; a file of another material, a
 /// truncated file and a sampler without tables are one-line errors.
