@@ -99,18 +99,40 @@ pub struct Args {
     quadrature: String,
 }
 
+/// How a survey or frontier run measured, as both JSON files give it.
+#[derive(Serialize)]
+struct RunFacts {
+    quadrature: String,
+    timing_samples_per_direction: usize,
+    timing_repeats: usize,
+    seconds: f64,
+    load_average_start: Option<f64>,
+    load_average_end: Option<f64>,
+}
+
+impl RunFacts {
+    /// The facts of a run of `a` that took `seconds`, the load average
+    /// read now as its end.
+    fn new(a: &Args, seconds: f64, load_average_start: Option<f64>) -> RunFacts {
+        RunFacts {
+            quadrature: a.quadrature.clone(),
+            timing_samples_per_direction: a.timing_samples,
+            timing_repeats: a.timing_repeats,
+            seconds,
+            load_average_start,
+            load_average_end: load_average(),
+        }
+    }
+}
+
 /// What survey.json holds.
 #[derive(Serialize)]
 struct SurveyFile<'a> {
     reference: String,
     target_efficiency: f64,
-    quadrature: String,
-    timing_samples_per_direction: usize,
-    timing_repeats: usize,
     threads: usize,
-    seconds: f64,
-    load_average_start: Option<f64>,
-    load_average_end: Option<f64>,
+    #[serde(flatten)]
+    run: RunFacts,
     summary: &'a [SummaryRow],
     rows: &'a [SurveyRow],
 }
@@ -198,13 +220,8 @@ pub fn run(a: Args) -> Result<()> {
     let file = SurveyFile {
         reference: reference.to_string(),
         target_efficiency: config.target,
-        quadrature: a.quadrature.clone(),
-        timing_samples_per_direction: a.timing_samples,
-        timing_repeats: a.timing_repeats,
         threads: rayon::current_num_threads(),
-        seconds,
-        load_average_start: load_start,
-        load_average_end: load_average(),
+        run: RunFacts::new(&a, seconds, load_start),
         summary: &summary,
         rows: &rows,
     };
@@ -223,7 +240,7 @@ pub fn run(a: Args) -> Result<()> {
         labels.len(),
         rayon::current_num_threads(),
         load_start.map_or("unknown".into(), |l| format!("{l:.2}")),
-        file.load_average_end.map_or("unknown".into(), |l| format!("{l:.2}"))
+        file.run.load_average_end.map_or("unknown".into(), |l| format!("{l:.2}"))
     );
     println!();
     print!("{}", format_summary(&summary, config.target));
@@ -365,12 +382,8 @@ struct FrontierFile<'a> {
     resolution: String,
     levels: &'a [f64],
     count_level: f64,
-    quadrature: String,
-    timing_samples_per_direction: usize,
-    timing_repeats: usize,
-    seconds: f64,
-    load_average_start: Option<f64>,
-    load_average_end: Option<f64>,
+    #[serde(flatten)]
+    run: RunFacts,
     summary: &'a [FamilySummary],
     rows: &'a [FrontierRow],
 }
@@ -436,12 +449,7 @@ fn run_frontier(
         resolution: config.options.resolution.to_string(),
         levels: &config.levels,
         count_level: a.target_efficiency,
-        quadrature: a.quadrature.clone(),
-        timing_samples_per_direction: a.timing_samples,
-        timing_repeats: a.timing_repeats,
-        seconds,
-        load_average_start: load_start,
-        load_average_end: load_average(),
+        run: RunFacts::new(a, seconds, load_start),
         summary: &summary,
         rows: &rows,
     };
@@ -460,7 +468,7 @@ fn run_frontier(
         specs.len(),
         families.len(),
         load_start.map_or("unknown".into(), |l| format!("{l:.2}")),
-        file.load_average_end.map_or("unknown".into(), |l| format!("{l:.2}")),
+        file.run.load_average_end.map_or("unknown".into(), |l| format!("{l:.2}")),
         config.reference
     );
     println!();
