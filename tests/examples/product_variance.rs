@@ -117,7 +117,7 @@ fn main() {
         "studio_small_03",
     ] {
         let map = Arc::new(EnvMap::open(&data.join(format!("envmaps/{stem}_1k.hdr"))).unwrap());
-        let env = Arc::new(ProductEnv::new(map.clone(), block_columns, 2).unwrap());
+        let env = Arc::new(ProductEnv::new(map.clone(), block_columns, 2, ProductOptions::default().sub_cells).unwrap());
         let light = oriented_env_sampler(
             map.clone(),
             AdaptiveBuilder::by_name("chi2", None).unwrap(),
