@@ -117,8 +117,13 @@ fn bench(c: &mut Criterion) {
         )
     });
     for columns in [32, 128] {
-        let other = ProductEnv::new(map.clone(), columns, options.points_per_side, options.sub_cells)
-            .unwrap();
+        let other = ProductEnv::new(
+            map.clone(),
+            columns,
+            options.points_per_side,
+            options.sub_cells,
+        )
+        .unwrap();
         let other_points = other.local_points(&frame);
         let name = format!("query_product_only_{columns}x{}_blocks", columns / 2);
         g.bench_function(&name, |b| {

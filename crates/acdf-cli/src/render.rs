@@ -74,12 +74,13 @@ pub struct Args {
     /// densities alone) to 65,536; they see a lobe narrower than a block.
     #[arg(long, value_name = "N", default_value_t = ProductOptions::default().mass_draws)]
     product_mass_draws: usize,
-    /// The share, in [0, 1], of a block's weight from the BRDF density at
-    /// its points (--product-points); the rest from the mass draws.
-    #[arg(long, value_name = "B", default_value_t = ProductOptions::default().point_share)]
-    product_point_share: f32,
+    /// How many mass draws must land in a block before their estimate
+    /// counts half: a block of c draws weighs the larger of its point
+    /// estimate (--product-points) and c / (c + C) × its mass estimate.
+    #[arg(long, value_name = "C", default_value_t = ProductOptions::default().mass_prior)]
+    product_mass_prior: f32,
     /// Sub-cells per block side (fewer where a block has fewer texels), from
-    /// 1 to 1024: inside a drawn block, a sub-cell is drawn by its light
+    /// 1 to 4: inside a drawn block, a sub-cell is drawn by its light
     /// times the BRDF density at its centre (1: texels by light alone).
     #[arg(long, value_name = "K", default_value_t = ProductOptions::default().sub_cells)]
     product_sub_cells: usize,
@@ -278,7 +279,7 @@ fn run_scene(
         block_columns: a.product_blocks,
         points_per_side: a.product_points,
         mass_draws: a.product_mass_draws,
-        point_share: a.product_point_share,
+        mass_prior: a.product_mass_prior,
         sub_cells: a.product_sub_cells,
         refine_light_share: a.product_light_share,
         ..ProductOptions::default()
@@ -440,8 +441,7 @@ fn run_scene(
             Some(r.last.moments()),
             Some(r.last.queries()),
         );
-        let seconds_per_pixel_setup =
-            shader(strategy).seconds_per_pixel_setup(
+        let seconds_per_pixel_setup = shader(strategy).seconds_per_pixel_setup(
             &camera,
             size,
             a.seed,

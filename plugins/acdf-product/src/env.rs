@@ -116,17 +116,21 @@ impl ProductEnv {
     /// Cut `map` into at most `columns` block columns (and half as many
     /// block rows, at least 1), never more than the map's texels, with
     /// `points_per_side`² evaluation points per block and at most
-    /// `sub_cells`² sub-cells per block. A typed error for a count of 0.
+    /// `sub_cells`² sub-cells per block. A typed error for a count of 0,
+    /// or more than 4 sub-cells per side.
     pub fn new(
         map: Arc<EnvMap>,
         columns: usize,
         points_per_side: usize,
         sub_cells: usize,
     ) -> Result<ProductEnv> {
-        if columns == 0 || points_per_side == 0 || sub_cells == 0 {
+        if columns == 0 || points_per_side == 0 || !(1..=4).contains(&sub_cells) {
             return Err(Error::InvalidParameter {
                 name: "product blocks",
-                reason: "block columns, points per side and sub-cells must be at least 1".into(),
+                reason: format!(
+                    "block columns and points per side must be at least 1, \
+                     sub-cells per side from 1 to 4 (got {columns}, {points_per_side}, {sub_cells})"
+                ),
             });
         }
         let (w, h) = map.size();
@@ -134,10 +138,7 @@ impl ProductEnv {
         let rows = (columns / 2).clamp(1, h);
         // Every block is at least ⌊W / columns⌋ texels wide.
         let (kc, kr) = (sub_cells.min(w / columns), sub_cells.min(h / rows));
-        let (column_start, row_start) = (
-            nested_starts(w, columns, kc),
-            nested_starts(h, rows, kr),
-        );
+        let (column_start, row_start) = (nested_starts(w, columns, kc), nested_starts(h, rows, kr));
         let (cell_columns, cell_rows) = (columns * kc, rows * kr);
         let grid = map.grid();
         let lum = map.luminance();
@@ -183,7 +184,10 @@ impl ProductEnv {
         let mut cell_centres = Vec::with_capacity(cell_light.len());
         for r in 0..cell_rows {
             for c in 0..cell_columns {
-                let (a, b) = (uv(column_start[c], row_start[r]), uv(column_start[c + 1], row_start[r + 1]));
+                let (a, b) = (
+                    uv(column_start[c], row_start[r]),
+                    uv(column_start[c + 1], row_start[r + 1]),
+                );
                 cell_centres.push(map.direction_of(0.5 * (a + b)));
             }
         }
@@ -197,9 +201,10 @@ impl ProductEnv {
                     for sx in 0..s {
                         let fx = (sx as f32 + 0.5) / s as f32;
                         let fy = (sy as f32 + 0.5) / s as f32;
-                        points.push(
-                            map.direction_of(Vec2::new(a.x + fx * (b.x - a.x), a.y + fy * (b.y - a.y))),
-                        );
+                        points.push(map.direction_of(Vec2::new(
+                            a.x + fx * (b.x - a.x),
+                            a.y + fy * (b.y - a.y),
+                        )));
                     }
                 }
             }
@@ -440,6 +445,7 @@ mod tests {
         let coarse = ProductEnv::new(map.clone(), 64, 1, 4).unwrap();
         assert_eq!(coarse.sub_cells(), (1, 1));
         assert!(ProductEnv::new(map.clone(), 0, 2, 1).is_err());
-        assert!(ProductEnv::new(map, 8, 2, 0).is_err());
+        assert!(ProductEnv::new(map.clone(), 8, 2, 0).is_err());
+        assert!(ProductEnv::new(map, 8, 2, 5).is_err());
     }
 }

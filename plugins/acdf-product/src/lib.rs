@@ -53,11 +53,12 @@ pub struct ProductOptions {
     /// N: draws of the BRDF sampler per shading point that estimate each
     /// block's BRDF mass times its light (0: the point densities alone).
     pub mass_draws: usize,
-    /// β in [0, 1]: the share of the blocks' weights from the point
-    /// densities, the rest from the N draws' mass.
-    pub point_share: f32,
-    /// k: sub-cells per block side (fewer where a block has fewer texels),
-    /// drawn inside a block by light × the BRDF density at their centres;
+    /// c₀ ≥ 0: how many of the N draws must land in a block before its
+    /// mass counts half against its point densities (a block of c draws
+    /// weighs max(point estimate, c / (c + c₀) × mass estimate)).
+    pub mass_prior: f32,
+    /// k, 1 to 4: sub-cells per block side (fewer where a block has fewer
+    /// texels), drawn inside a block by light × the BRDF density at their centres;
     /// 1 draws a block's texels by their light alone.
     pub sub_cells: usize,
     /// γ in [0, 1]: the share of a block's sub-cell draws by light alone.
@@ -65,7 +66,7 @@ pub struct ProductOptions {
 }
 
 impl Default for ProductOptions {
-    /// 64 × 32 blocks, 2 × 2 points per block, δ = 0.15, N = 64, β = 0.25,
+    /// 64 × 32 blocks, 2 × 2 points per block, δ = 0.15, N = 64, c₀ = 64,
     /// 4 × 4 sub-cells, γ = 0.1.
     fn default() -> Self {
         ProductOptions {
@@ -73,7 +74,7 @@ impl Default for ProductOptions {
             points_per_side: 2,
             defensive: 0.15,
             mass_draws: 64,
-            point_share: 0.25,
+            mass_prior: 64.0,
             sub_cells: 4,
             refine_light_share: 0.1,
         }
@@ -81,13 +82,14 @@ impl Default for ProductOptions {
 }
 
 impl ProductOptions {
-    /// A typed error for a count of 0 or above 1024 (draws: above 65,536),
-    /// or a share outside [0, 1].
+    /// A typed error for a count of 0 or above 1024 (sub-cells: above 4,
+    /// draws: above 65,536),
+    /// a share outside [0, 1] or a mass prior below 0 or not finite.
     pub fn validate(&self) -> Result<()> {
         for (name, v, lo, hi) in [
             ("block columns", self.block_columns, 1, 1024),
             ("points per side", self.points_per_side, 1, 1024),
-            ("sub-cells per side", self.sub_cells, 1, 1024),
+            ("sub-cells per side", self.sub_cells, 1, 4),
             ("mass draws", self.mass_draws, 0, 65536),
         ] {
             if !(lo..=hi).contains(&v) {
@@ -99,7 +101,6 @@ impl ProductOptions {
         }
         for (name, v) in [
             ("defensive share", self.defensive),
-            ("point share", self.point_share),
             ("refinement light share", self.refine_light_share),
         ] {
             if !(0.0..=1.0).contains(&v) {
@@ -108,6 +109,12 @@ impl ProductOptions {
                     reason: format!("{v} is not in [0, 1]"),
                 });
             }
+        }
+        if !(self.mass_prior >= 0.0 && self.mass_prior.is_finite()) {
+            return Err(Error::InvalidParameter {
+                name: "mass prior",
+                reason: format!("{} is not a finite count of at least 0", self.mass_prior),
+            });
         }
         Ok(())
     }

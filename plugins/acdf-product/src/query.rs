@@ -13,26 +13,30 @@ use std::sync::OnceLock;
 ///
 /// **Blocks.** Block b of the map weighs
 ///
-/// w_b = (1 − β) · m_b / Σ m + β · q_b / Σ q,
+/// w_b = max(q_b, c_b / (c_b + c₀) · m_b),
 ///
-/// with β the point share ([`ProductOptions::point_share`]):
-/// - m_b, the BRDF sampler's mass: N draws of the BRDF sampler from fixed
-///   stratified numbers (a Fibonacci lattice), each landing above the
-///   horizon in block b adding the mean radiance M_f / Ω_f of the sub-cell
-///   f it lands in; m_b / N estimates ∫_b p_S(wo, ω) L̄(ω) dω (L̄ the
-///   map's luminance averaged over sub-cells) and sees a lobe narrower
-///   than a block wherever it lies;
+/// two estimates of the block's product mass ∫_b p_S(wo, ω) L̄(ω) dω (L̄
+/// the map's luminance averaged over sub-cells), per shading point:
 /// - q_b = p̄_S(b) · M_b: M_b the block's light and p̄_S(b) the mean of
 ///   the BRDF sampler's density p_S(wo, ·) (which follows f_r cos θ_i)
 ///   over the block's evaluation points, those below the horizon counting
-///   0; it keeps every block whose points see the lobe drawable where the
-///   N draws miss it.
+///   0; smooth, but blind to a lobe narrower than a block that passes
+///   between its points;
+/// - m_b, the BRDF sampler's mass: N draws of the BRDF sampler from fixed
+///   stratified numbers (a Fibonacci lattice), each of the c_b landing
+///   above the horizon in block b adding M_f / Ω_f / N (the mean radiance
+///   of the sub-cell f it lands in); unbiased, and sees a narrow lobe
+///   wherever it lies, but noisy where a block receives few draws (a broad
+///   lobe), so that it counts by c_b / (c_b + c₀) (c₀ the mass prior,
+///   [`ProductOptions::mass_prior`]), and never lowers q_b.
 ///
 /// **Sub-cells.** Inside block b, sub-cell f weighs
 ///
 /// v_f = (1 − γ) · M_f p_S(wo, c_f) / Σ_b M p_S(c) + γ · M_f / M_b,
 ///
-/// c_f its centre and γ the light share ([`ProductOptions::refine_light_share`];
+/// c_f its centre, p_S taken at the query's shading point (the middle of
+/// its points when it serves several, [`build_over`](Self::build_over)),
+/// and γ the light share ([`ProductOptions::refine_light_share`];
 /// v_f = M_f / M_b where p_S is 0 at every centre of the block), formed the
 /// first time a draw or a density needs the block and kept. A draw picks a
 /// block by w, a sub-cell by v, a texel t of it by its light and a
@@ -43,7 +47,7 @@ use std::sync::OnceLock;
 ///
 /// (b, f, t) the block, sub-cell and texel of wi in the map's frame. All
 /// these weights are fixed once formed (the N draws use fixed numbers, the
-/// sub-cell tables are formed from the same shading points whichever call
+/// sub-cell tables are formed at the same shading point whichever call
 /// forms them), so the density is exact, and positive wherever p_S is. A
 /// draw that lands below the horizon is `None` (its share is the mass the
 /// density does not cover). When every weight is 0 (a black map, or no lit
@@ -53,23 +57,60 @@ use std::sync::OnceLock;
 pub struct ProductQuery {
     wo: Vec3,
     frame: Frame,
-    /// The shading points (frame, wo) the weights were formed over; the
-    /// sub-cell tables are formed over them too.
-    at: Vec<(Frame, Vec3)>,
+    /// The shading point (frame, wo) the sub-cell tables are formed at:
+    /// the one the weights were formed over, or the mean of several
+    /// ([`centre_of`]).
+    centre: (Frame, Vec3),
     /// 1 − δ, or 0 when no block has weight.
     grid_share: f32,
     /// γ.
     light_share: f32,
-    /// Per block, w_b / Σ w (empty when `grid_share` is 0).
-    share: Vec<f32>,
+    /// Per block, w_b / Σ w and its sub-cell table's index in `tables`
+    /// (empty when `grid_share` is 0): one look-up for both.
+    blocks: Vec<BlockShare>,
     /// The blocks' CDF: the value after each block, the last exactly 1.
     cdf: Vec<f32>,
-    /// Per block with weight, its index in `tables` (`u32::MAX` for a
-    /// block without); empty with one sub-cell per block.
-    slot: Vec<u32>,
-    /// Per block with weight, the CDF over its sub-cells, formed on first
-    /// use.
-    tables: Vec<OnceLock<Box<[f32]>>>,
+    /// Per block with weight (when a block has several sub-cells), the
+    /// CDF over its sub-cells, formed on first use; held inline, so that
+    /// a draw reads it with one look-up.
+    tables: Vec<OnceLock<[f32; MAX_SUB_CELLS]>>,
+}
+
+/// The most sub-cells a block has: 4 × 4 ([`ProductOptions::sub_cells`]
+/// at most 4).
+pub(crate) const MAX_SUB_CELLS: usize = 16;
+
+/// A block's share of the block draws and the index of its sub-cell
+/// table (`u32::MAX`: none, a block without weight or of one sub-cell).
+#[derive(Debug, Clone, Copy)]
+struct BlockShare {
+    share: f32,
+    slot: u32,
+}
+
+/// The shading point at the middle of `at`: the mean of their normals
+/// and of their outgoing directions (in the world), as a frame and a local
+/// wo; the only point when there is one, the first when the mean is not a
+/// valid point, `None` for none. Where a query serves several points (a
+/// pixel's), one table per block at their middle costs a quarter of one
+/// over four points.
+fn centre_of(at: &[(Frame, Vec3)]) -> Option<(Frame, Vec3)> {
+    let first = *at.first()?;
+    if at.len() == 1 {
+        return Some(first);
+    }
+    let n: Vec3 = at.iter().map(|(f, _)| f.z).sum();
+    let o: Vec3 = at.iter().map(|(f, wo)| f.to_world(*wo)).sum();
+    let (Some(n), Some(o)) = (n.try_normalize(), o.try_normalize()) else {
+        return Some(first);
+    };
+    let frame = Frame::from_z(n);
+    let wo = frame.to_local(o);
+    Some(if is_valid_outgoing(wo) {
+        (frame, wo)
+    } else {
+        first
+    })
 }
 
 /// The fixed numbers of the N draws that estimate the blocks' BRDF mass:
@@ -116,9 +157,9 @@ impl ProductQuery {
 
     /// Form one product for several shading points (a frame and a wo
     /// each, the first being the query's own): the blocks' mass and point
-    /// weights are summed over the points (the point densities at each
+    /// estimates are averaged over the points (the point densities at each
     /// point's own block points above its horizon), and the sub-cell tables
-    /// likewise. One density serves all these points (a renderer's samples
+    /// are formed at their middle (the mean normal and wo). One density serves all these points (a renderer's samples
     /// spread over a pixel): any query's density is exact wherever it is
     /// used ([`sample_at`](Self::sample_at)); the sums make the blocks
     /// cover the lobe at each of the points, not only at one. Points whose
@@ -149,8 +190,9 @@ impl ProductQuery {
     }
 
     /// The query over the shading points `at` whose per-block sums of
-    /// point densities are `densities`: q_b = M_b × densities_b, m_b from
-    /// N draws at each point, w_b their blend (the type's documentation).
+    /// point densities are `densities`: q_b = M_b × densities_b / (points
+    /// per block × shading points), m_b from N draws at each point, and
+    /// w_b from both (the type's documentation).
     fn form(
         env: &ProductEnv,
         (frame, wo): (Frame, Vec3),
@@ -159,61 +201,55 @@ impl ProductQuery {
         brdf: &dyn BxdfSampler,
         options: &ProductOptions,
     ) -> ProductQuery {
-        let none = |at| ProductQuery {
+        let centre = centre_of(&at).unwrap_or((frame, wo));
+        let none = ProductQuery {
             wo,
             frame,
-            at,
+            centre,
             grid_share: 0.0,
             light_share: 1.0,
-            share: Vec::new(),
+            blocks: Vec::new(),
             cdf: Vec::new(),
-            slot: Vec::new(),
             tables: Vec::new(),
         };
         if !(options.defensive < 1.0) || at.is_empty() {
-            return none(at);
+            return none;
         }
-        let mut point_total = 0.0;
+        // q_b, per shading point: the sums of densities over the block's
+        // points and over the shading points, averaged.
+        let per = (env.points_per_block() * at.len()) as f64;
         for (b, w) in weights.iter_mut().enumerate() {
-            *w *= env.light(b);
-            point_total += *w;
+            *w *= env.light(b) / per;
         }
-        let mut mass = vec![0f64; env.block_count()];
-        let mut mass_total = 0.0;
-        if options.mass_draws > 0 && options.point_share < 1.0 {
+        if options.mass_draws > 0 {
             let u = lattice(options.mass_draws);
+            let scale = 1.0 / (u.len() * at.len()) as f64;
+            let mut mass = vec![0f64; env.block_count()];
+            let mut count = vec![0u32; env.block_count()];
             let mut drawn = vec![None; u.len()];
             for (frame, wo) in &at {
                 brdf.sample_batch(*wo, &u, &mut drawn);
                 for d in drawn.iter().flatten() {
                     if d.wi.z > 0.0 {
                         if let Some((b, l)) = env.block_radiance(frame.to_world(d.wi)) {
-                            mass[b] += l as f64;
-                            mass_total += l as f64;
+                            mass[b] += l as f64 * scale;
+                            count[b] += 1;
                         }
                     }
                 }
             }
+            let prior = options.mass_prior as f64;
+            for ((w, &m), &c) in weights.iter_mut().zip(&mass).zip(&count) {
+                if c > 0 {
+                    let c = c as f64;
+                    *w = w.max(c / (c + prior) * m);
+                }
+            }
         }
-        let beta = options.point_share as f64;
-        let (a, c) = match (
-            mass_total > 0.0 && mass_total.is_finite(),
-            point_total > 0.0 && point_total.is_finite(),
-        ) {
-            (true, true) => ((1.0 - beta) / mass_total, beta / point_total),
-            (true, false) => (1.0 / mass_total, 0.0),
-            (false, true) => (0.0, 1.0 / point_total),
-            (false, false) => return none(at),
-        };
-        let mut total = 0.0;
-        for (w, m) in weights.iter_mut().zip(&mass) {
-            *w = a * m + c * *w;
-            total += *w;
-        }
+        let total: f64 = weights.iter().sum();
         if !(total > 0.0 && total.is_finite()) {
-            return none(at);
+            return none;
         }
-        let share: Vec<f32> = weights.iter().map(|&w| (w / total) as f32).collect();
         let mut cdf = Vec::with_capacity(weights.len());
         let mut running = 0.0;
         for &w in &weights {
@@ -221,49 +257,48 @@ impl ProductQuery {
             cdf.push((running / total) as f32);
         }
         *cdf.last_mut().expect("a map has a block") = 1.0;
-        let (mut slot, mut tables) = (Vec::new(), Vec::new());
-        if env.sub_cells_per_block() > 1 {
-            slot = share
-                .iter()
-                .map(|&s| {
-                    if s > 0.0 {
-                        tables.push(OnceLock::new());
-                        (tables.len() - 1) as u32
-                    } else {
-                        u32::MAX
-                    }
-                })
-                .collect();
-        }
+        let refined = env.sub_cells_per_block() > 1;
+        let mut tables = Vec::new();
+        let blocks = weights
+            .iter()
+            .map(|&w| {
+                let share = (w / total) as f32;
+                let slot = if refined && share > 0.0 {
+                    tables.push(OnceLock::new());
+                    (tables.len() - 1) as u32
+                } else {
+                    u32::MAX
+                };
+                BlockShare { share, slot }
+            })
+            .collect();
         ProductQuery {
             wo,
             frame,
-            at,
+            centre,
             grid_share: 1.0 - options.defensive.clamp(0.0, 1.0),
             light_share: options.refine_light_share.clamp(0.0, 1.0),
-            share,
+            blocks,
             cdf,
-            slot,
             tables,
         }
     }
 
     /// The CDF over the sub-cells of block `b` (which has weight), formed
     /// now if no call has formed it: v_f from M_f and p_S at the sub-cell
-    /// centres, summed over the query's shading points (one `pdf_batch`
-    /// each), mixed with the light alone by γ (the type's documentation).
+    /// centres at the query's centre point (one `pdf_batch`), mixed with
+    /// the light alone by γ (the type's documentation).
     /// `None` with one sub-cell per block.
     fn sub_cdf(&self, env: &ProductEnv, brdf: &dyn BxdfSampler, b: usize) -> Option<&[f32]> {
-        let slot = *self.slot.get(b)?;
+        let slot = self.blocks.get(b)?.slot;
         let table = self.tables.get(slot as usize)?;
-        Some(table.get_or_init(|| {
-            let n = env.sub_cells_per_block();
-            let cells: Vec<usize> = (0..n).map(|s| env.cell_index(b, s)).collect();
-            let mut density = vec![0f64; n];
-            let (mut dirs, mut which, mut p) = (Vec::new(), Vec::new(), Vec::new());
-            for (frame, wo) in &self.at {
-                dirs.clear();
-                which.clear();
+        let n = env.sub_cells_per_block();
+        Some(
+            &table.get_or_init(|| {
+                let cells: Vec<usize> = (0..n).map(|s| env.cell_index(b, s)).collect();
+                let mut density = vec![0f64; n];
+                let (frame, wo) = self.centre;
+                let (mut dirs, mut which) = (Vec::new(), Vec::new());
                 for (s, &f) in cells.iter().enumerate() {
                     let local = frame.to_local(env.cell_centre(f));
                     if local.z > 0.0 {
@@ -271,43 +306,51 @@ impl ProductQuery {
                         which.push(s);
                     }
                 }
-                p.resize(dirs.len(), 0.0);
-                brdf.pdf_batch(*wo, &dirs, &mut p);
+                let mut p = vec![0f32; dirs.len()];
+                brdf.pdf_batch(wo, &dirs, &mut p);
                 for (&s, &p) in which.iter().zip(&p) {
                     if p > 0.0 && p.is_finite() {
                         density[s] += p as f64;
                     }
                 }
-            }
-            let light: Vec<f64> = cells.iter().map(|&f| env.cell_light(f)).collect();
-            let light_total: f64 = light.iter().sum();
-            let product_total: f64 = light.iter().zip(&density).map(|(l, d)| l * d).sum();
-            let gamma = if product_total > 0.0 && product_total.is_finite() {
-                self.light_share as f64
-            } else {
-                1.0
-            };
-            let mut out = vec![0f32; n];
-            crate::env::cdf_into(
-                light.iter().zip(&density).map(|(&l, &d)| {
-                    let lit = if light_total > 0.0 { l / light_total } else { 0.0 };
-                    let product = if gamma < 1.0 { l * d / product_total } else { 0.0 };
-                    (1.0 - gamma) * product + gamma * lit
-                }),
-                &mut out,
-            );
-            out.into_boxed_slice()
-        }))
+                let light: Vec<f64> = cells.iter().map(|&f| env.cell_light(f)).collect();
+                let light_total: f64 = light.iter().sum();
+                let product_total: f64 = light.iter().zip(&density).map(|(l, d)| l * d).sum();
+                let gamma = if product_total > 0.0 && product_total.is_finite() {
+                    self.light_share as f64
+                } else {
+                    1.0
+                };
+                let mut out = [0f32; MAX_SUB_CELLS];
+                crate::env::cdf_into(
+                    light.iter().zip(&density).map(|(&l, &d)| {
+                        let lit = if light_total > 0.0 {
+                            l / light_total
+                        } else {
+                            0.0
+                        };
+                        let product = if gamma < 1.0 {
+                            l * d / product_total
+                        } else {
+                            0.0
+                        };
+                        (1.0 - gamma) * product + gamma * lit
+                    }),
+                    &mut out[..n],
+                );
+                out
+            })[..n],
+        )
     }
 
     /// The blocks whose sub-cell tables have been formed.
     pub fn formed_blocks(&self) -> Vec<usize> {
-        self.slot
+        self.blocks
             .iter()
             .enumerate()
-            .filter(|(_, &s)| {
+            .filter(|(_, e)| {
                 self.tables
-                    .get(s as usize)
+                    .get(e.slot as usize)
                     .is_some_and(|t| t.get().is_some())
             })
             .map(|(b, _)| b)
@@ -346,22 +389,15 @@ impl ProductQuery {
     /// w_b / Σ w of block `b` (0 for a block without weight, or when no
     /// block has weight).
     pub fn block_share(&self, b: usize) -> f32 {
-        self.share.get(b).copied().unwrap_or(0.0)
+        self.blocks.get(b).map_or(0.0, |e| e.share)
     }
 
-    /// Heap bytes: the blocks' shares, CDF and slots, and the sub-cell
-    /// tables formed so far.
+    /// Heap bytes: the blocks' shares, CDF and sub-cell tables (room for
+    /// one per block with weight), and the shading points.
     pub fn storage_bytes(&self) -> usize {
-        let formed: usize = self
-            .tables
-            .iter()
-            .filter_map(|t| t.get())
-            .map(|t| t.len() * std::mem::size_of::<f32>())
-            .sum();
-        (self.share.len() + self.cdf.len() + self.slot.len()) * std::mem::size_of::<f32>()
-            + self.tables.len() * std::mem::size_of::<OnceLock<Box<[f32]>>>()
-            + self.at.len() * std::mem::size_of::<(Frame, Vec3)>()
-            + formed
+        self.blocks.len() * std::mem::size_of::<BlockShare>()
+            + self.cdf.len() * std::mem::size_of::<f32>()
+            + self.tables.len() * std::mem::size_of::<OnceLock<[f32; MAX_SUB_CELLS]>>()
     }
 
     /// Draw wi from `u` at the frame and wo the query was formed for:
@@ -480,7 +516,7 @@ impl ProductQuery {
         }
         let grid_part = if self.grid_share > 0.0 {
             env.cell_density(dir).map_or(0.0, |(b, s, density)| {
-                let share = self.share[b];
+                let share = self.blocks[b].share;
                 if !(share > 0.0) {
                     return 0.0;
                 }

@@ -162,8 +162,7 @@ impl BxdfSampler for ConeSampler {
         (pdf > 0.0).then_some(BxdfSample { wi, pdf })
     }
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if is_valid_outgoing(wo) && wi.z > 0.0 && wi.normalize().dot(self.axis) >= self.cos_alpha
-        {
+        if is_valid_outgoing(wo) && wi.z > 0.0 && wi.normalize().dot(self.axis) >= self.cos_alpha {
             1.0 / (std::f32::consts::TAU * (1.0 - self.cos_alpha))
         } else {
             0.0
@@ -190,7 +189,11 @@ fn a_narrow_lobe_under_a_sun_gets_its_true_product_mass() {
     let (sun_k, sun_j) = (98, 48);
     let (sun_light, sky) = (400.0, 1.0);
     let map = EnvMap::from_fn(w, h, |k, j| {
-        Rgb::splat(if (k, j) == (sun_k, sun_j) { sun_light } else { sky })
+        Rgb::splat(if (k, j) == (sun_k, sun_j) {
+            sun_light
+        } else {
+            sky
+        })
     })
     .unwrap();
     let axis = map.direction_of(map.grid().texel_centre(96, 48));
@@ -205,7 +208,10 @@ fn a_narrow_lobe_under_a_sun_gets_its_true_product_mass() {
     let map = Arc::new(map);
     let env = ProductEnv::new(map.clone(), 16, 2, 4).unwrap();
     let block_of = |d: Vec3| env.cell_density(d).unwrap().0;
-    let (sun_block, other) = (block_of(sun), block_of(map.direction_of(map.grid().texel_centre(94, 48))));
+    let (sun_block, other) = (
+        block_of(sun),
+        block_of(map.direction_of(map.grid().texel_centre(94, 48))),
+    );
     assert_ne!(sun_block, other);
     // The true product mass per block, and the sun's texel's part.
     let mut mass = vec![0f64; env.block_count()];
@@ -235,11 +241,17 @@ fn a_narrow_lobe_under_a_sun_gets_its_true_product_mass() {
     let q = query(&env, ProductOptions::default());
     let share = q.block_share(sun_block) as f64;
     eprintln!("sun block: true share {true_share:.3}, mass-weighted {share:.3}");
-    assert!((share - true_share).abs() < 0.1, "{share} against {true_share}");
-    let points_only = query(&env, ProductOptions {
-        mass_draws: 0,
-        ..ProductOptions::default()
-    });
+    assert!(
+        (share - true_share).abs() < 0.1,
+        "{share} against {true_share}"
+    );
+    let points_only = query(
+        &env,
+        ProductOptions {
+            mass_draws: 0,
+            ..ProductOptions::default()
+        },
+    );
     assert_eq!(points_only.grid_share(), 0.0);
     // The share of block draws that reach the sun's texel, against its
     // share of the product.
@@ -247,7 +259,10 @@ fn a_narrow_lobe_under_a_sun_gets_its_true_product_mass() {
         let n = 20_000;
         let hits = (0..n)
             .filter(|&i| {
-                let u = Vec2::new((i as f32 + 0.5) / n as f32 * 0.85 + 0.15, ((i as f32) * 0.618_034).fract());
+                let u = Vec2::new(
+                    (i as f32 + 0.5) / n as f32 * 0.85 + 0.15,
+                    ((i as f32) * 0.618_034).fract(),
+                );
                 q.sample(env, &cone, u)
                     .is_some_and(|d| map.texel_of(frame.to_world(d.wi)) == Some((sun_k, sun_j)))
             })
