@@ -72,6 +72,8 @@ pub struct Args {
     /// Draws of the BRDF sampler per shading point of a product query that
     /// estimate each block's BRDF mass times its light, from 0 (the point
     /// densities alone) to 65,536; they see a lobe narrower than a block.
+    /// At equal CPU time they did not pay in the renders of
+    /// docs/rendering.md.
     #[arg(long, value_name = "N", default_value_t = ProductOptions::default().mass_draws)]
     product_mass_draws: usize,
     /// How many mass draws must land in a block before their estimate
@@ -82,7 +84,10 @@ pub struct Args {
     /// Sub-cells per block side (fewer where a block has fewer texels), from
     /// 1 to 4: inside a drawn block, a sub-cell is drawn by its light
     /// times the BRDF density at its centre (1: texels by light alone).
-    #[arg(long, value_name = "K", default_value_t = ProductOptions::default().sub_cells)]
+    /// 1 by default here: the sub-cells' tables and look-ups cost more CPU
+    /// time than they saved in the renders of docs/rendering.md (the
+    /// product sampler's own default is 4).
+    #[arg(long, value_name = "K", default_value_t = 1)]
     product_sub_cells: usize,
     /// The share, in [0, 1], of the sub-cell draws inside a block by light
     /// alone, which keeps every lit sub-cell drawable.

@@ -1868,7 +1868,12 @@ mod tests {
             mis_fraction: DEFAULT_MIS_FRACTION,
             product: Some(ProductLight {
                 env,
-                options: ProductOptions::default(),
+                // Both the mass draws and the sub-cells (the map's blocks
+                // are cut into sub-cells by the tests' ProductEnv).
+                options: ProductOptions {
+                    mass_draws: 64,
+                    ..ProductOptions::default()
+                },
                 draws,
             }),
         }

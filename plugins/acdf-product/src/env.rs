@@ -33,10 +33,14 @@ pub struct ProductEnv {
     /// Sub-cells per block along a row (kc) and a column (kr).
     sub_columns: usize,
     sub_rows: usize,
-    /// The sub-cell column (over the whole map, columns × kc of them) of
-    /// each texel column, the sub-cell row of each texel row.
-    cell_of_column: Vec<u32>,
-    cell_of_row: Vec<u32>,
+    /// Per texel column: its sub-cell column over the whole map (columns ×
+    /// kc of them), its block column and its sub-cell column in the block;
+    /// per texel row likewise (no division when a direction is located).
+    column_place: Vec<[u32; 3]>,
+    row_place: Vec<[u32; 3]>,
+    /// Per texel, at [j · W + k]: Y_t / M_f, the density of a draw inside
+    /// its sub-cell f (0 in a sub-cell without light).
+    texel_density: Vec<f32>,
     /// The first texel column of each sub-cell column (and W at the end),
     /// the first texel row of each sub-cell row (and H).
     column_start: Vec<usize>,
@@ -103,11 +107,14 @@ fn nested_starts(n: usize, blocks: usize, k: usize) -> Vec<usize> {
     out
 }
 
-/// Per item of `0..n`, the run of `starts` ([`nested_starts`]) holding it.
-fn run_of(starts: &[usize]) -> Vec<u32> {
+/// Per item of `0..n`, the run r of `starts` ([`nested_starts`], `k`
+/// runs per block) holding it, its block r / k and its run in the block
+/// r % k.
+fn places(starts: &[usize], k: usize) -> Vec<[u32; 3]> {
     let mut out = Vec::with_capacity(*starts.last().unwrap_or(&0));
     for (r, w) in starts.windows(2).enumerate() {
-        out.extend(std::iter::repeat_n(r as u32, w[1] - w[0]));
+        let place = [r as u32, (r / k) as u32, (r % k) as u32];
+        out.extend(std::iter::repeat_n(place, w[1] - w[0]));
     }
     out
 }
@@ -175,6 +182,19 @@ impl ProductEnv {
             let (r, c) = (f / cell_columns / kr, f % cell_columns / kc);
             light[r * columns + c] += m;
         }
+        let mut texel_density = vec![0f32; w * h];
+        for r in 0..cell_rows {
+            for c in 0..cell_columns {
+                let m = cell_light[r * cell_columns + c];
+                if m > 0.0 {
+                    for j in row_start[r]..row_start[r + 1] {
+                        for k in column_start[c]..column_start[c + 1] {
+                            texel_density[j * w + k] = (lum[j * w + k].max(0.0) as f64 / m) as f32;
+                        }
+                    }
+                }
+            }
+        }
         let cell_radiance = cell_light
             .iter()
             .zip(&cell_omega)
@@ -215,8 +235,9 @@ impl ProductEnv {
             rows,
             sub_columns: kc,
             sub_rows: kr,
-            cell_of_column: run_of(&column_start),
-            cell_of_row: run_of(&row_start),
+            column_place: places(&column_start, kc),
+            row_place: places(&row_start, kr),
+            texel_density,
             column_start,
             row_start,
             light,
@@ -274,7 +295,8 @@ impl ProductEnv {
     pub fn storage_bytes(&self) -> usize {
         (self.light.len() + self.cell_light.len()) * 8
             + (self.row_cdf.len() + self.column_cdf.len() + self.cell_radiance.len()) * 4
-            + (self.cell_of_column.len() + self.cell_of_row.len()) * 4
+            + (self.column_place.len() + self.row_place.len()) * 12
+            + self.texel_density.len() * 4
             + (self.column_start.len() + self.row_start.len()) * 8
             + (self.points.len() + self.cell_centres.len()) * std::mem::size_of::<Vec3>()
     }
@@ -324,13 +346,11 @@ impl ProductEnv {
     #[inline]
     fn locate(&self, dir: Vec3) -> Option<(usize, usize, usize, usize)> {
         let (k, j) = self.map.texel_of(dir)?;
-        let (cr, cc) = (
-            self.cell_of_row[j] as usize,
-            self.cell_of_column[k] as usize,
-        );
-        let b = cr / self.sub_rows * self.columns + cc / self.sub_columns;
-        let s = cr % self.sub_rows * self.sub_columns + cc % self.sub_columns;
-        Some((b, s, k, j))
+        let ([cc, bc, sc], [cr, br, sr]) = (self.column_place[k], self.row_place[j]);
+        let b = br as usize * self.columns + bc as usize;
+        let s = sr as usize * self.sub_columns + sc as usize;
+        let f = cr as usize * self.columns * self.sub_columns + cc as usize;
+        Some((b, s, f, j * self.map.size().0 + k))
     }
 
     /// The block and sub-cell (in the block) of the world direction `dir`,
@@ -338,18 +358,16 @@ impl ProductEnv {
     /// `dir`); `None` for a direction that is not finite or has no length.
     #[inline]
     pub fn cell_density(&self, dir: Vec3) -> Option<(usize, usize, f32)> {
-        let (b, s, k, j) = self.locate(dir)?;
-        let m = self.cell_light[self.cell_index(b, s)];
-        let y = self.map.luminance()[j * self.map.size().0 + k] as f64;
-        Some((b, s, if m > 0.0 { (y / m) as f32 } else { 0.0 }))
+        let (b, s, _, t) = self.locate(dir)?;
+        Some((b, s, self.texel_density[t]))
     }
 
     /// The block of the world direction `dir` and the mean radiance
     /// M_f / Ω_f of its sub-cell; `None` as [`cell_density`](Self::cell_density).
     #[inline]
     pub fn block_radiance(&self, dir: Vec3) -> Option<(usize, f32)> {
-        let (b, s, _, _) = self.locate(dir)?;
-        Some((b, self.cell_radiance[self.cell_index(b, s)]))
+        let (b, _, f, _) = self.locate(dir)?;
+        Some((b, self.cell_radiance[f]))
     }
 
     /// Draw a world direction inside the map's sub-cell `f` with density

@@ -51,7 +51,9 @@ pub struct ProductOptions {
     /// the density covers every direction the BRDF sampler's does.
     pub defensive: f32,
     /// N: draws of the BRDF sampler per shading point that estimate each
-    /// block's BRDF mass times its light (0: the point densities alone).
+    /// block's BRDF mass times its light (0, the default: the point
+    /// densities alone; docs/environment.md measures where they help and
+    /// where they hurt).
     pub mass_draws: usize,
     /// c₀ ≥ 0: how many of the N draws must land in a block before its
     /// mass counts half against its point densities (a block of c draws
@@ -66,14 +68,14 @@ pub struct ProductOptions {
 }
 
 impl Default for ProductOptions {
-    /// 64 × 32 blocks, 2 × 2 points per block, δ = 0.15, N = 64, c₀ = 64,
+    /// 64 × 32 blocks, 2 × 2 points per block, δ = 0.15, N = 0, c₀ = 64,
     /// 4 × 4 sub-cells, γ = 0.1.
     fn default() -> Self {
         ProductOptions {
             block_columns: 64,
             points_per_side: 2,
             defensive: 0.15,
-            mass_draws: 64,
+            mass_draws: 0,
             mass_prior: 64.0,
             sub_cells: 4,
             refine_light_share: 0.1,

@@ -28,13 +28,14 @@ use std::sync::OnceLock;
 ///   of the sub-cell f it lands in); unbiased, and sees a narrow lobe
 ///   wherever it lies, but noisy where a block receives few draws (a broad
 ///   lobe), so that it counts by c_b / (c_b + c₀) (c₀ the mass prior,
-///   [`ProductOptions::mass_prior`]), and never lowers q_b.
+///   [`ProductOptions::mass_prior`]), and never lowers q_b (with N = 0,
+///   w_b = q_b).
 ///
 /// **Sub-cells.** Inside block b, sub-cell f weighs
 ///
-/// v_f = (1 − γ) · M_f p_S(wo, c_f) / Σ_b M p_S(c) + γ · M_f / M_b,
+/// v_f = (1 − γ) · M_f p_S(wo, c_f) / Σ_g M_g p_S(wo, c_g) + γ · M_f / M_b,
 ///
-/// c_f its centre, p_S taken at the query's shading point (the middle of
+/// g over the block's sub-cells, c_f the centre of f, p_S taken at the query's shading point (the middle of
 /// its points when it serves several, [`build_over`](Self::build_over)),
 /// and γ the light share ([`ProductOptions::refine_light_share`];
 /// v_f = M_f / M_b where p_S is 0 at every centre of the block), formed the

@@ -98,7 +98,7 @@ fn world_integral(w: usize, h: usize, per: usize, f: impl Fn(Vec3) -> f64) -> f6
 /// texels, a smooth map) to the share of draws that succeed: the blocks
 /// straddle the horizon, and draws of theirs below it are `None`. With
 /// blocks of one texel, and with blocks of 4 × 4 texels drawn through
-/// their sub-cells (the refined density).
+/// their sub-cells (the refined density); with 64 mass draws.
 #[test]
 fn the_density_integrates_to_the_share_of_draws() {
     let map = EnvMap::from_fn(64, 32, |k, j| {
@@ -115,6 +115,7 @@ fn the_density_integrates_to_the_share_of_draws() {
             let options = ProductOptions {
                 defensive: delta,
                 block_columns,
+                mass_draws: 64,
                 ..ProductOptions::default()
             };
             let env = ProductEnv::new(Arc::new(map.clone()), block_columns, 2, 4).unwrap();
@@ -175,8 +176,8 @@ impl BxdfSampler for ConeSampler {
 
 /// A lobe of 6° half-angle, narrower than a block (22.5°), across the
 /// edge of two blocks, neither of whose 2 × 2 points it reaches, with a
-/// one-texel sun in one of them: the blocks' weights from the BRDF
-/// sampler's mass give the sun's block a share within 0.1 of its true
+/// one-texel sun in one of them: the blocks' weights from 64 draws of the BRDF
+/// sampler (their mass) give the sun's block a share within 0.1 of its true
 /// share of the product ∫_b p_S L dω (quadrature), where the point
 /// densities alone (N = 0) give no block a weight at all. Drawn through
 /// the sub-cells, the sun's share of the draws is within 0.1 of its true
@@ -238,7 +239,11 @@ fn a_narrow_lobe_under_a_sun_gets_its_true_product_mass() {
         let points = env.local_points(&frame);
         ProductQuery::build(env, frame, &points, &cone, wo, &options)
     };
-    let q = query(&env, ProductOptions::default());
+    let with_mass = ProductOptions {
+        mass_draws: 64,
+        ..ProductOptions::default()
+    };
+    let q = query(&env, with_mass);
     let share = q.block_share(sun_block) as f64;
     eprintln!("sun block: true share {true_share:.3}, mass-weighted {share:.3}");
     assert!(
@@ -272,7 +277,7 @@ fn a_narrow_lobe_under_a_sun_gets_its_true_product_mass() {
     let want = sun_mass / total;
     let refined = sun_draws(&env, &q);
     let coarse = ProductEnv::new(map.clone(), 16, 2, 1).unwrap();
-    let unrefined = sun_draws(&coarse, &query(&coarse, ProductOptions::default()));
+    let unrefined = sun_draws(&coarse, &query(&coarse, with_mass));
     eprintln!("draws on the sun: true {want:.3}, refined {refined:.3}, light alone {unrefined:.3}");
     assert!((refined - want).abs() < 0.1, "{refined} against {want}");
     assert!(unrefined < 0.5 * want, "{unrefined} against {want}");
