@@ -19,8 +19,9 @@ use acdf_core::{BxdfSampler, Rgb, SphereSampler, Vec3};
 use acdf_experiments::plot::{Figure, Panel, Series, Style};
 use acdf_materials::analytic::Lambert;
 use acdf_render::render::{
-    render, render_memory_estimate, Budget, Camera, Film, Geometry, ProductLight, Progress,
-    Rendered, Shader, Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO, PRODUCT_LIGHT_SHARE,
+    render, render_memory_estimate, Budget, Camera, Film, Geometry, PixelSampling, ProductLight,
+    Progress, Rendered, Shader, Strategy, Surface, DEFAULT_MIS_FRACTION, PLANE_ALBEDO,
+    PRODUCT_LIGHT_SHARE,
 };
 
 use crate::common::{bar, file_stem_safe, material, spinner, stdout, MaterialArgs, TableArgs};
@@ -97,6 +98,13 @@ pub struct Args {
     /// as JSON, with the scene, the reference and each strategy's timings.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
+    /// Where in its pixel each camera sample goes: `stratified` (a
+    /// shifted two-dimensional Kronecker sequence per pixel) or
+    /// `independent` (uniform points), or `centre` (every sample through
+    /// the pixel's centre: no antialiasing, so the error is the direction
+    /// samplers' alone).
+    #[arg(long, value_name = "KIND", default_value = "stratified", value_parser = pixel_sampling)]
+    pixel_sampling: PixelSampling,
     /// Image width in pixels.
     #[arg(long, default_value_t = 128)]
     width: usize,
@@ -108,12 +116,15 @@ pub struct Args {
     spp: usize,
     /// Seconds of rendering per strategy, after --spp: the equal-time table
     /// (wall clock, on every thread). The equal-CPU-time table, printed
-    /// always, instead scales the RMSE at --spp to S seconds (1 without
-    /// --seconds) of one thread by each strategy's CPU time per camera
-    /// sample, the fastest of --timing-repeats passes on one thread:
-    /// RMSE_at_spp * sqrt(spp * pixels * t_sample / S). A thread that waits
-    /// for a core does not advance its CPU clock, so it depends less on the
-    /// machine's load than the wall-clock table.
+    /// always, instead takes the samples per pixel S seconds (1 without
+    /// --seconds) of one thread buy, by each strategy's CPU time per camera
+    /// sample, the fastest of --timing-repeats passes on one thread: spp =
+    /// (S / pixels - setup per pixel) / t_sample. With independent pixel
+    /// samples the RMSE at --spp is scaled to them (RMSE_at_spp * sqrt(spp
+    /// at --spp / spp)); otherwise each strategy is rendered anew at
+    /// floor(spp). A thread that waits for a core does not advance its CPU
+    /// clock, so it depends less on the machine's load than the wall-clock
+    /// table.
     #[arg(long, value_name = "S")]
     seconds: Option<f64>,
     /// Timed passes (at least 8192 camera samples each) of the CPU time per
@@ -204,6 +215,10 @@ struct Result1 {
     /// CPU seconds per pixel formed once, whatever its samples (the
     /// product queries), on one thread.
     seconds_per_pixel_setup: f64,
+    /// The samples per pixel the CPU budget buys, and the RMSE of a render
+    /// of that many (infinite when it buys none).
+    spp_in_budget: f64,
+    rmse_in_budget: f64,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -318,7 +333,10 @@ fn run_scene(
         mis_fraction: a.mis_fraction,
         product,
     };
-    let camera = Camera::default();
+    let camera = Camera {
+        pixel_sampling: a.pixel_sampling,
+        ..Camera::default()
+    };
     let size = (a.width, height);
     acdf_io::fsio::ensure_folder(&a.out)?;
     // The folder of --json too, so that a path that cannot be written fails
@@ -366,9 +384,15 @@ fn run_scene(
         Some(p) => read_exr(p, size)?,
         None => {
             let key = format!(
-                "acdf render reference v1: material {} envmap {:?} size {}x{} plane {} spp {} seed {} samplers {}+{} tables {:?}",
+                "acdf render reference v1: material {} envmap {:?} size {}x{} plane {} spp {} seed {} samplers {}+{} tables {:?}{}",
                 m.spec, a.envmap, size.0, size.1, a.plane, a.ref_spp, a.seed,
-                a.brdf_sampler, mis_env_name, options
+                a.brdf_sampler, mis_env_name, options,
+                // Independent and stratified samples have the same mean
+                // image, so they share a reference; the centre's is another.
+                match a.pixel_sampling {
+                    PixelSampling::Centre => " pixels centre",
+                    _ => "",
+                }
             );
             let exr = a.out.join(format!("{label}-reference.exr"));
             let key_path = a.out.join(format!("{label}-reference.key"));
@@ -418,6 +442,7 @@ fn run_scene(
         }
     };
 
+    let cpu_budget = a.seconds.unwrap_or(1.0);
     let mut results = Vec::new();
     for &strategy in strategies {
         let pb = bar(
@@ -453,11 +478,46 @@ fn run_scene(
             a.timing_repeats,
             Some(r.last.queries()),
         );
-        // The queries are no longer needed; the next strategy's take
+        // The queries are no longer needed; the render at equal CPU time and the next strategy's take
         // their memory.
         r.at_spp.drop_queries();
         r.last.drop_queries();
         let rmse_at_spp = r.at_spp.rmse(&reference).unwrap_or(f64::NAN);
+        // Equal CPU time: the samples per pixel the budget buys after each
+        // pixel's setup. With independent pixel samples the error falls as
+        // 1/sqrt(samples) and the RMSE at --spp is scaled to them; a
+        // stratified pattern's falls faster, so it is rendered anew.
+        let pixels = (size.0 * size.1) as f64;
+        let spp_in_budget = (cpu_budget / pixels - seconds_per_pixel_setup).max(0.0)
+            / seconds_per_sample.max(1e-300);
+        let rmse_in_budget = if spp_in_budget.is_nan() || spp_in_budget < 1.0 {
+            f64::INFINITY
+        } else if a.pixel_sampling == PixelSampling::Independent {
+            rmse_at_spp * (r.at_spp.samples_per_pixel() as f64 / spp_in_budget).sqrt()
+        } else {
+            let spp = spp_in_budget.min(u32::MAX as f64) as usize;
+            let pb = bar(
+                100,
+                &format!("{} at equal CPU time ({spp} spp)", strategy.name()),
+            );
+            let mut b = render(
+                &shader(strategy),
+                &camera,
+                size,
+                Budget { spp, time: None },
+                a.seed ^ EQUAL_CPU_SEED,
+                None,
+                |f| pb.set_position((f * 100.0) as u64),
+            );
+            pb.finish_and_clear();
+            b.last.drop_queries();
+            b.last.rmse(&reference).unwrap_or(f64::NAN)
+        };
+        let spp_in_budget = if a.pixel_sampling == PixelSampling::Independent {
+            spp_in_budget
+        } else {
+            spp_in_budget.floor()
+        };
         let rmse_last = r.last.rmse(&reference).unwrap_or(f64::NAN);
         results.push(Result1 {
             strategy,
@@ -467,6 +527,8 @@ fn run_scene(
             rmse_last,
             seconds_per_sample,
             seconds_per_pixel_setup,
+            spp_in_budget,
+            rmse_in_budget,
         });
     }
 
@@ -739,30 +801,28 @@ fn tables(a: &Args, size: (usize, usize), results: &[Result1]) -> Vec<Table> {
             },
         ));
     }
-    // Equal CPU time, modelled: the samples per pixel `budget` seconds of
-    // one thread buy after each pixel's setup, and the RMSE at --spp
-    // scaled to them (RMSE falls as 1/sqrt(samples)).
+    // Equal CPU time: each strategy rendered anew at the samples per pixel
+    // `budget` seconds of one thread buy after each pixel's setup.
     let budget = a.seconds.unwrap_or(1.0);
+    let how = if a.pixel_sampling == PixelSampling::Independent {
+        format!(
+            "modelled: RMSE at {} spp x sqrt({} / spp in budget), spp in budget = (budget / pixels - \
+             CPU s per pixel setup) / CPU s per camera sample",
+            a.spp, a.spp
+        )
+    } else {
+        "rendered at spp = floor((budget / pixels - CPU s per pixel setup) / CPU s per camera sample)"
+            .to_string()
+    };
     let mut cpu = table(
         "equal_cpu_time",
         format!(
-            "equal CPU time ({budget} s of one thread, modelled: RMSE at {} spp x sqrt({} / spp in budget), \
-             spp in budget = (budget / pixels - CPU s per pixel setup) / CPU s per camera sample; fastest of {} timed passes)",
-            a.spp, a.spp, a.timing_repeats
+            "equal CPU time ({budget} s of one thread, {how}; fastest of {} timed passes)",
+            a.timing_repeats
         ),
         Some(budget),
-        1,
-        &|r| {
-            let spp = (budget / pixels - r.seconds_per_pixel_setup).max(0.0)
-                / r.seconds_per_sample.max(1e-300);
-            // No sample in the budget: no estimate.
-            let rmse = if spp > 0.0 {
-                r.rmse_at_spp * (r.rendered.at_spp.samples_per_pixel() as f64 / spp).sqrt()
-            } else {
-                f64::INFINITY
-            };
-            (spp, budget, rmse)
-        },
+        usize::from(a.pixel_sampling == PixelSampling::Independent),
+        &|r| (r.spp_in_budget, budget, r.rmse_in_budget),
     );
     // What a camera sample costs, setup aside (as before the setup was
     // counted).
@@ -824,6 +884,20 @@ fn print_tables(
     }
     out.flush()?;
     Ok(())
+}
+
+/// Mixed into `--seed` for the renders at equal CPU time, so that they
+/// are not the equal-sample renders' first passes again.
+const EQUAL_CPU_SEED: u64 = 0xC0DE_0000_0000_0001;
+
+/// The pixel sampling of its command-line name.
+fn pixel_sampling(name: &str) -> std::result::Result<PixelSampling, String> {
+    PixelSampling::from_name(name).ok_or_else(|| {
+        format!(
+            "the pixel samplings are {}",
+            PixelSampling::NAMES.join(", ")
+        )
+    })
 }
 
 /// The strategies of a comma-separated list.
@@ -941,8 +1015,9 @@ fn check_sizes(a: &Args) -> Result<usize> {
         });
     }
     // The reference and, per strategy, two films (at --spp and the last),
-    // its PNG, its error map and their tiles in the composite (twice).
-    let n = a.strategies.split(',').count() + 1;
+    // its PNG, its error map and their tiles in the composite (twice); and
+    // one film at a time at equal CPU time.
+    let n = a.strategies.split(',').count() + 2;
     // With a product strategy, at most one query per pixel is kept at a
     // time: a share and a CDF value per block.
     let blocks = a.product_blocks.clamp(1, 1024);

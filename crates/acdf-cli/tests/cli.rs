@@ -924,6 +924,8 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         "--env-sampler",
         "uniform",
         "--plane",
+        "--pixel-sampling",
+        "independent",
         "--width",
         "24",
         "--height",
@@ -966,8 +968,9 @@ fn render_writes_every_strategy_and_caches_the_reference() {
         let rmse: f64 = r[4].parse().unwrap();
         assert!(rmse.is_finite() && rmse > 0.0, "{r:?}");
     }
-    // The modelled equal-CPU-time table: the RMSE at 2 spp scaled by the
-    // samples one thread renders in 1 s.
+    // With independent pixel samples the equal-CPU-time table is
+    // modelled: the RMSE at 2 spp scaled by the samples one thread renders
+    // in 1 s.
     let cpu = render_rows(&out, "equal CPU time");
     assert_eq!(cpu.len(), 8, "{out}");
     for (r, e) in cpu.iter().zip(&rows) {
@@ -1051,6 +1054,70 @@ fn render_writes_every_strategy_and_caches_the_reference() {
     let o = acdf(&args);
     assert_ok(&o);
     assert!(stderr(&o).contains("cached"), "{}", stderr(&o));
+}
+
+/// With stratified pixel samples (the default) the equal-CPU-time table
+/// is rendered: each strategy's samples per pixel are the whole number its
+/// rate buys in the budget, with a finite RMSE; an unknown pixel sampling
+/// is refused with the names of the known ones.
+#[test]
+fn render_stratified_renders_the_equal_cpu_time_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = acdf(&[
+        "render",
+        "--material",
+        "builtin:blue-metallic-paint",
+        "--brdf-sampler",
+        "uniform",
+        "--env-sampler",
+        "uniform",
+        "--strategies",
+        "brdf,mis-power,product",
+        "--width",
+        "12",
+        "--height",
+        "8",
+        "--spp",
+        "2",
+        "--ref-spp",
+        "8",
+        "--seconds",
+        "0.02",
+        "--timing-repeats",
+        "2",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("rendered at spp = floor("), "{out}");
+    let cpu = render_rows(&out, "equal CPU time");
+    assert_eq!(cpu.len(), 3, "{out}");
+    for r in &cpu {
+        let (spp, rmse, rate): (f64, f64, f64) = (
+            r[2].parse().unwrap(),
+            r[4].parse().unwrap(),
+            r[6].parse().unwrap(),
+        );
+        assert_eq!(spp, spp.floor(), "{r:?}");
+        assert!(spp >= 1.0 && rmse.is_finite() && rmse > 0.0, "{r:?}");
+        // At most what the rate buys (the product pays for its queries
+        // first; the rate is printed to 5 digits).
+        assert!(spp <= 0.02 * rate / 96.0 * (1.0 + 1e-4) + 1.0, "{r:?}");
+        if !r[0].contains("product") {
+            assert!(spp >= 0.02 * rate / 96.0 * (1.0 - 1e-4) - 1.0, "{r:?}");
+        }
+    }
+    let o = acdf(&[
+        "render",
+        "--pixel-sampling",
+        "jittered",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(err.contains("independent, stratified, centre"), "{err}");
 }
 
 #[test]

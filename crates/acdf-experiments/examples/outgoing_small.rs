@@ -15,9 +15,8 @@
 
 use acdf::core::{BxdfSampler, HemisphereGrid};
 use acdf::tabulated::Resolution;
-use acdf::SamplerOps as _;
-use acdf::{load_material, make_sampler, MaterialSpec, SamplerOptions, Sky};
-use acdf_experiments::efficiency::{EfficiencyConfig, Integrands};
+use acdf::{load_material, MaterialSpec, Sky};
+use acdf_experiments::efficiency::{paper_table, EfficiencyConfig, Integrands};
 use acdf_outgoing::{OutgoingBuilder, OutgoingSampler};
 
 fn main() {
@@ -55,16 +54,7 @@ fn main() {
         let spec: MaterialSpec = name.parse().expect("a material");
         let material = load_material(&spec, None).expect("the material");
         let q = Integrands::new(material.brdf.as_ref(), &env, &config);
-        let reference = make_sampler(
-            "uniform",
-            &material,
-            &SamplerOptions {
-                resolution: "32x16x256x32".parse().unwrap(),
-                ..SamplerOptions::default()
-            },
-        )
-        .and_then(|x| x.build_all().map(|()| x))
-        .expect("the reference");
+        let reference = paper_table(&material).expect("the reference");
         let r = q.noise_free(&reference);
         println!(
             "{name} reference r {:.4e} by θ_o 10,30,50,70: {}",

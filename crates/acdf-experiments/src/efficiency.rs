@@ -603,6 +603,19 @@ pub fn fastest(xs: &[f64]) -> f64 {
     }
 }
 
+/// The 32x16x256x32 table of Lawrence et al. for `material`, every slice
+/// built: the reference of the efficiency experiments' examples.
+pub fn paper_table(material: &acdf::material::Material) -> acdf::error::Result<acdf::AnySampler> {
+    use acdf::SamplerOps as _;
+    let options = acdf::SamplerOptions {
+        resolution: acdf::tabulated::Resolution::PAPER,
+        ..acdf::SamplerOptions::default()
+    };
+    let table = acdf::make_sampler("uniform", material, &options)?;
+    table.build_all()?;
+    Ok(table)
+}
+
 /// The median of `xs` (the mean of the middle two for an even count); 0
 /// for none.
 pub fn median(xs: &[f64]) -> f64 {

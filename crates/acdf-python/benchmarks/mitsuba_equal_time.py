@@ -59,6 +59,8 @@ def run_acdf(args: argparse.Namespace, out: Path) -> dict:
            "--width", str(args.width), "--height", str(args.height),
            "--spp", str(args.spp), "--ref-spp", str(args.ref_spp),
            "--seconds", str(args.seconds), "--threads", "1",
+           # Uniform points in the pixel, as the exported `independent` sampler.
+           "--pixel-sampling", "independent",
            "--out", str(out / "acdf"), "--json", str(json_path), *args.acdf_args]
     print("$", " ".join(cmd), flush=True)
     subprocess.run(cmd, check=True)

@@ -77,6 +77,8 @@ def acdf_renders(acdf_bin: Path, material: str, envmap: Path, out: Path,
         subprocess.run(
             [str(acdf_bin), "render", "--material", material, "--envmap", str(envmap), *extra,
              "--width", str(WIDTH), "--spp", str(SPP), "--ref-spp", "1",
+             # Uniform points in the pixel, as Mitsuba's `independent` sampler.
+             "--pixel-sampling", "independent",
              "--strategies", "mis-power", "--seed", str(100 + k), "--out", str(d)],
             check=True, capture_output=True, text=True,
         )

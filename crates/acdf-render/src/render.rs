@@ -320,7 +320,78 @@ pub struct Camera {
     pub up: Vec3,
     /// tan of half the horizontal field of view.
     pub tan_half_x: f32,
+    /// Where in its pixel each camera sample goes.
+    pub pixel_sampling: PixelSampling,
 }
+
+/// How the camera spreads a pixel's samples over the pixel.
+///
+/// Every strategy shares the variance of the pixel's radiance across its
+/// area (a highlight or the sphere's outline smaller than a pixel); a
+/// stratified pattern cuts that part, so what is left of the error is the
+/// direction sampler's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PixelSampling {
+    /// Each sample at an independent uniform point of the pixel.
+    Independent,
+    /// The n-th sample at frac(s + n·(1/g, 1/g²)), g the plastic number
+    /// (the root of g³ = g + 1): a two-dimensional Kronecker sequence whose
+    /// first n points cover the pixel evenly for every n, shifted by a
+    /// uniform s drawn once per pixel, so that each point is still uniform
+    /// in the pixel and the pixel's mean unbiased.
+    #[default]
+    Stratified,
+    /// Every sample through the pixel's centre: the image is then the
+    /// scene's radiance at fixed shading points, one per pixel, and its
+    /// error is the direction samplers' alone (no antialiasing).
+    Centre,
+}
+
+impl PixelSampling {
+    /// The names, as on the command line.
+    pub const NAMES: [&'static str; 3] = ["independent", "stratified", "centre"];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelSampling::Independent => Self::NAMES[0],
+            PixelSampling::Stratified => Self::NAMES[1],
+            PixelSampling::Centre => Self::NAMES[2],
+        }
+    }
+
+    /// The sampling of a command-line name.
+    pub fn from_name(name: &str) -> Option<PixelSampling> {
+        match name {
+            "independent" => Some(PixelSampling::Independent),
+            "stratified" => Some(PixelSampling::Stratified),
+            "centre" => Some(PixelSampling::Centre),
+            _ => None,
+        }
+    }
+
+    /// The offset in [0, 1)² of a pixel's `index`-th sample, given the
+    /// pixel's shift (uniform, drawn once per pixel) and, for independent
+    /// sampling, a fresh uniform pair.
+    pub fn offset(self, index: usize, shift: Vec2, fresh: Vec2) -> Vec2 {
+        match self {
+            PixelSampling::Independent => fresh,
+            PixelSampling::Stratified => {
+                // 1/g and 1/g² of the plastic number g = 1.3247179572...
+                const STEP: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
+                let n = index as f64;
+                let x = (f64::from(shift.x) + n * STEP[0]).fract();
+                let y = (f64::from(shift.y) + n * STEP[1]).fract();
+                // Below 1 after rounding to f32.
+                Vec2::new(x as f32, y as f32).min(Vec2::splat(ONE_BELOW))
+            }
+            PixelSampling::Centre => Vec2::splat(0.5),
+        }
+    }
+}
+
+/// The largest f32 below 1.
+const ONE_BELOW: f32 = 1.0 - f32::EPSILON / 2.0;
 
 impl Default for Camera {
     /// [`CAMERA_EYE`] looking at [`CAMERA_TARGET`], `+z` up,
@@ -348,7 +419,30 @@ impl Camera {
             right,
             up,
             tan_half_x: (0.5 * fov_x_degrees.to_radians()).tan(),
+            pixel_sampling: PixelSampling::default(),
         }
+    }
+
+    /// The image point of the `index`-th sample of pixel (`col`, `row`)
+    /// of a `width` × `height` image, with the pixel's `shift` (see
+    /// [`PixelSampling::offset`]); `rng` gives independent samples.
+    pub fn image_point(
+        &self,
+        (col, row): (usize, usize),
+        (width, height): (usize, usize),
+        index: usize,
+        shift: Vec2,
+        rng: &mut impl Rng,
+    ) -> Vec2 {
+        let fresh = match self.pixel_sampling {
+            PixelSampling::Independent => Vec2::new(rng.random(), rng.random()),
+            PixelSampling::Stratified | PixelSampling::Centre => Vec2::ZERO,
+        };
+        let o = self.pixel_sampling.offset(index, shift, fresh);
+        Vec2::new(
+            (col as f32 + o.x) / width as f32,
+            (row as f32 + o.y) / height as f32,
+        )
     }
 
     /// The unit direction through the image point `p` ∈ [0, 1]² (x to the
@@ -495,6 +589,7 @@ pub type QuerySlot = Option<Arc<ProductQuery>>;
 /// on a glossy sphere its lobe moves by several blocks of the map from
 /// one side to the other; a query formed at one point weighs the blocks
 /// of the lobe elsewhere in the pixel too little (docs/rendering.md).
+/// With [`PixelSampling::Centre`] the query is formed at the centre alone.
 pub const QUERY_POINTS: [[f32; 2]; 4] = [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]];
 
 /// How a direction's estimate is weighted.
@@ -704,7 +799,13 @@ impl Shader<'_> {
         }
         let (width, height) = (width.max(1), height.max(1));
         let aspect = width as f32 / height as f32;
-        let at: Vec<(Frame, Vec3)> = QUERY_POINTS
+        // Where every sample goes through the centre, its one shading
+        // point is the query's.
+        let points: &[[f32; 2]] = match camera.pixel_sampling {
+            PixelSampling::Centre => &[[0.5, 0.5]],
+            _ => &QUERY_POINTS,
+        };
+        let at: Vec<(Frame, Vec3)> = points
             .iter()
             .filter_map(|&[fx, fy]| {
                 let p = Vec2::new(
@@ -1009,10 +1110,8 @@ impl Shader<'_> {
                 rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed ^ 0x7133_0000, round as u64, pixel));
             let (row, col) = (pixel / width, pixel % width);
             self.form_pixel_query(camera, (col, row), (width, height), &mut queries[pixel]);
-            let p = Vec2::new(
-                (col as f32 + rng.random::<f32>()) / width as f32,
-                (row as f32 + rng.random::<f32>()) / height as f32,
-            );
+            let shift = pixel_shift(seed, pixel);
+            let p = camera.image_point((col, row), (width, height), round, shift, &mut rng);
             let d = camera.direction(p, aspect);
             acc += self.pixel_radiance(
                 camera.eye,
@@ -1089,6 +1188,13 @@ pub fn pooled_fractions(moments: &[FractionMoments], width: usize, default: f32)
         box_line(&rows, &mut both, x, width, height);
     }
     both.iter().map(|m| m.best(default)).collect()
+}
+
+/// The shift of a pixel's stratified pattern: uniform, fixed per (`seed`,
+/// pixel) so that the passes continue one sequence.
+fn pixel_shift(seed: u64, pixel: usize) -> Vec2 {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed ^ 0x51A7_0000, u64::MAX, pixel));
+    Vec2::new(rng.random(), rng.random())
 }
 
 fn pixel_seed(seed: u64, pass: u64, pixel: usize) -> u64 {
@@ -1176,6 +1282,7 @@ impl Film {
         let (width, height) = (self.width, self.height);
         let aspect = width as f32 / height.max(1) as f32;
         let fractions = shader.fractions(&self.moments, width);
+        let done = self.samples_per_pixel;
         self.sums
             .par_chunks_mut(width.max(1))
             .zip(self.squares.par_chunks_mut(width.max(1)))
@@ -1198,10 +1305,14 @@ impl Film {
                             pass,
                             row * width + col,
                         ));
-                        for _ in 0..spp {
-                            let p = Vec2::new(
-                                (col as f32 + rng.random::<f32>()) / width as f32,
-                                (row as f32 + rng.random::<f32>()) / height as f32,
+                        let shift = pixel_shift(seed, row * width + col);
+                        for k in 0..spp {
+                            let p = camera.image_point(
+                                (col, row),
+                                (width, height),
+                                done + k,
+                                shift,
+                                &mut rng,
                             );
                             let d = camera.direction(p, aspect);
                             let v = shader
@@ -2183,5 +2294,56 @@ mod tests {
         assert!(c.right.x > 0.99 && c.up.z > 0.9);
         assert!(c.direction(Vec2::new(1.0, 0.5), 1.0).x > 0.0);
         assert!(c.direction(Vec2::new(0.5, 0.0), 1.0).z > d.z);
+    }
+
+    /// Pixel sampling: every offset lies in [0, 1)²; the centre's is the
+    /// centre; over random shifts the stratified pattern's mean of a pixel
+    /// cut by an edge is its covered area (no bias; |z| < 4, a two-sided
+    /// level of about 6e-5), with less than 0.4 of the independent points'
+    /// RMS error at 64 samples (0.31 with this seed).
+    #[test]
+    fn stratified_pixel_samples_are_unbiased_and_beat_independent_ones() {
+        let covered = |p: Vec2| f64::from(u8::from(p.x < 0.3 + 0.4 * p.y));
+        let (shifts, n) = (400, 64);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let mut errors = [Vec::new(), Vec::new()];
+        for _ in 0..shifts {
+            let shift = Vec2::new(rng.random(), rng.random());
+            for (e, kind) in errors
+                .iter_mut()
+                .zip([PixelSampling::Stratified, PixelSampling::Independent])
+            {
+                let mut sum = 0.0;
+                for k in 0..n {
+                    let fresh = Vec2::new(rng.random(), rng.random());
+                    let o = kind.offset(k, shift, fresh);
+                    assert!(o.cmpge(Vec2::ZERO).all() && o.cmplt(Vec2::ONE).all(), "{o}");
+                    sum += covered(o);
+                }
+                e.push(sum / n as f64 - 0.5);
+            }
+        }
+        let stats = |e: &[f64]| {
+            let m = e.iter().sum::<f64>() / e.len() as f64;
+            let rms = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+            (m, rms)
+        };
+        let ((m, rms), (_, rms_independent)) = (stats(&errors[0]), stats(&errors[1]));
+        let se = rms / (shifts as f64).sqrt();
+        assert!(m.abs() < 4.0 * se + 1e-12, "bias {m} (se {se})");
+        assert!(
+            rms < 0.4 * rms_independent,
+            "{rms} against {rms_independent}"
+        );
+        for k in [0, 1, 1000, usize::MAX / 2] {
+            let near_one = Vec2::splat(1.0 - f32::EPSILON);
+            let o = PixelSampling::Stratified.offset(k, near_one, Vec2::ZERO);
+            assert!(o.cmplt(Vec2::ONE).all(), "{o}");
+            let c = PixelSampling::Centre.offset(k, near_one, near_one);
+            assert_eq!(c, Vec2::splat(0.5));
+        }
+        for name in PixelSampling::NAMES {
+            assert_eq!(PixelSampling::from_name(name).unwrap().name(), name);
+        }
     }
 }
