@@ -61,12 +61,18 @@ fn bench(c: &mut Criterion) {
     let r = Resolution::ISOTROPIC;
     let builder = OutgoingBuilder::by_name("chi2", None, r.theta_o * FINE_PER_CELL).unwrap();
     let outgoing = OutgoingSampler::new(brdf, r, builder).unwrap();
-    let env = ProductEnv::new(map.clone(), options.block_columns, options.points_per_side).unwrap();
+    let env = ProductEnv::new(
+        map.clone(),
+        options.block_columns,
+        options.points_per_side,
+        options.sub_cells,
+    )
+    .unwrap();
     let cases = cases();
     let (normal, wo) = cases[0];
     let frame = Frame::from_z(normal);
     let points = env.local_points(&frame);
-    let query = ProductQuery::build(&env, frame, &points, &outgoing, wo, options.defensive);
+    let query = ProductQuery::build(&env, frame, &points, &outgoing, wo, &options);
     eprintln!(
         "bytes: blocks {} (map {}x{}), one normal's points {}, one product {}; outgoing:chi2 {}",
         env.storage_bytes(),
@@ -85,6 +91,7 @@ fn bench(c: &mut Criterion) {
                 black_box(map.clone()),
                 options.block_columns,
                 options.points_per_side,
+                options.sub_cells,
             )
             .unwrap()
         })
@@ -96,7 +103,7 @@ fn bench(c: &mut Criterion) {
             let (normal, wo) = cases[k];
             let frame = Frame::from_z(normal);
             let points = env.local_points(&frame);
-            ProductQuery::build(&env, frame, &points, &outgoing, wo, options.defensive)
+            ProductQuery::build(&env, frame, &points, &outgoing, wo, &options)
         })
     });
     g.bench_function("query_product_only", |b| {
@@ -105,12 +112,18 @@ fn bench(c: &mut Criterion) {
                 k = (k + 1) % cases.len();
                 cases[k].1
             },
-            |wo| ProductQuery::build(&env, frame, &points, &outgoing, wo, options.defensive),
+            |wo| ProductQuery::build(&env, frame, &points, &outgoing, wo, &options),
             BatchSize::SmallInput,
         )
     });
     for columns in [32, 128] {
-        let other = ProductEnv::new(map.clone(), columns, options.points_per_side).unwrap();
+        let other = ProductEnv::new(
+            map.clone(),
+            columns,
+            options.points_per_side,
+            options.sub_cells,
+        )
+        .unwrap();
         let other_points = other.local_points(&frame);
         let name = format!("query_product_only_{columns}x{}_blocks", columns / 2);
         g.bench_function(&name, |b| {
@@ -121,7 +134,7 @@ fn bench(c: &mut Criterion) {
                 },
                 |wo| {
                     let (env, points) = (&other, &other_points);
-                    ProductQuery::build(env, frame, points, &outgoing, wo, options.defensive)
+                    ProductQuery::build(env, frame, points, &outgoing, wo, &options)
                 },
                 BatchSize::SmallInput,
             )

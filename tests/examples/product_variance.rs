@@ -10,10 +10,14 @@
 //! (60°, 120°) and (100°, 300°), wo at θ_o = 30° and 75°.
 //!
 //! ```text
-//! cargo run --release -p acdf-conformance --example product_variance [BLOCK_COLUMNS]
+//! cargo run --release -p acdf-conformance --example product_variance [BLOCK_COLUMNS] [VARIANTS]
 //! ```
 //!
-//! (BLOCK_COLUMNS: the product's block columns, 64 by default.)
+//! (BLOCK_COLUMNS: the product's block columns, 64 by default. VARIANTS:
+//! instead of the δs, product samplers at δ = 0.15 with other options,
+//! comma-separated, each `N:c₀:k:γ` — mass draws, mass prior, sub-cells
+//! per block side, refinement light share (`ProductOptions`), e.g.
+//! `0:0:1:0,64:4:4:0.1`.)
 //!
 //! Per case one line: the relative variances, and the product's at each δ
 //! divided by the best of the three others. Then per map the median and
@@ -70,6 +74,39 @@ impl BxdfSampler for Half<'_> {
 
 const DELTAS: [f32; 5] = [0.05, 0.1, 0.15, 0.2, 0.3];
 
+/// The product samplers' options: the δs of [`DELTAS`] with the defaults,
+/// or the variants `N:c₀:k:γ` of `spec` (comma-separated) at the default δ.
+fn variants(spec: Option<&str>) -> Vec<(String, ProductOptions)> {
+    let d = ProductOptions::default();
+    match spec {
+        None => DELTAS
+            .iter()
+            .map(|&defensive| {
+                (
+                    format!("product{defensive}"),
+                    ProductOptions { defensive, ..d },
+                )
+            })
+            .collect(),
+        Some(spec) => spec
+            .split(',')
+            .map(|v| {
+                let f: Vec<&str> = v.split(':').collect();
+                assert_eq!(f.len(), 4, "a variant is N:c0:k:gamma, not {v}");
+                let o = ProductOptions {
+                    mass_draws: f[0].parse().expect("N"),
+                    mass_prior: f[1].parse().expect("c0"),
+                    sub_cells: f[2].parse().expect("k"),
+                    refine_light_share: f[3].parse().expect("gamma"),
+                    ..d
+                };
+                o.validate().expect("valid options");
+                (format!("product[{v}]"), o)
+            })
+            .collect(),
+    }
+}
+
 fn direction(theta_deg: f32, phi_deg: f32) -> Vec3 {
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
     Vec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
@@ -79,6 +116,8 @@ fn main() {
     let block_columns: usize = std::env::args()
         .nth(1)
         .map_or(64, |a| a.parse().expect("BLOCK_COLUMNS is a count"));
+    let spec = std::env::args().nth(2);
+    let variants = variants(spec.as_deref());
     let data = acdf_materials::shared_data_dir().expect("the shared data (ACDF_SHARED_DATA)");
     let mut materials: Vec<(String, Arc<dyn Brdf>)> =
         ["nickel", "gray-plastic", "blue-metallic-paint", "lambert"]
@@ -107,7 +146,11 @@ fn main() {
     };
     println!(
         "map,material,normal,theta_o,brdf,light,mis,{}",
-        DELTAS.map(|d| format!("product{d}")).join(",")
+        variants
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .collect::<Vec<_>>()
+            .join(",")
     );
     let mut summary = Vec::new();
     for stem in [
@@ -117,7 +160,15 @@ fn main() {
         "studio_small_03",
     ] {
         let map = Arc::new(EnvMap::open(&data.join(format!("envmaps/{stem}_1k.hdr"))).unwrap());
-        let env = Arc::new(ProductEnv::new(map.clone(), block_columns, 2).unwrap());
+        // One cut of the map per sub-cell count.
+        let mut envs: Vec<(usize, Arc<ProductEnv>)> = Vec::new();
+        for (_, o) in &variants {
+            if !envs.iter().any(|(k, _)| *k == o.sub_cells) {
+                let env = ProductEnv::new(map.clone(), block_columns, 2, o.sub_cells).unwrap();
+                envs.push((o.sub_cells, Arc::new(env)));
+            }
+        }
+        let env_of = |k: usize| envs.iter().find(|(e, _)| *e == k).unwrap().1.clone();
         let light = oriented_env_sampler(
             map.clone(),
             AdaptiveBuilder::by_name("chi2", None).unwrap(),
@@ -125,7 +176,7 @@ fn main() {
             0.0,
         )
         .unwrap();
-        let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); DELTAS.len()];
+        let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); variants.len()];
         for ((name, brdf), base) in materials.iter().zip(&bases) {
             for (nt, np) in [(0.0, 0.0), (60.0, 120.0), (100.0, 300.0)] {
                 let normal = direction(nt, np);
@@ -146,15 +197,12 @@ fn main() {
                     let light_rv = rv(&local_light);
                     let mis_rv = rv(&Half(base.as_ref(), &local_light));
                     let best = brdf_rv.min(light_rv).min(mis_rv);
-                    let products: Vec<f64> = DELTAS
+                    let products: Vec<f64> = variants
                         .iter()
-                        .map(|&defensive| {
-                            let options = ProductOptions {
-                                defensive,
-                                ..ProductOptions::default()
-                            };
-                            let p = ProductSampler::new(base.clone(), env.clone(), normal, options)
-                                .unwrap();
+                        .map(|(_, options)| {
+                            let env = env_of(options.sub_cells);
+                            let p =
+                                ProductSampler::new(base.clone(), env, normal, *options).unwrap();
                             rv(&p)
                         })
                         .collect();
@@ -174,7 +222,14 @@ fn main() {
     println!(
         "product relative variance / best of (brdf, light, mis): median [worst] over the cases"
     );
-    println!("map,{}", DELTAS.map(|d| format!("delta={d}")).join(","));
+    println!(
+        "map,{}",
+        variants
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .collect::<Vec<_>>()
+            .join(",")
+    );
     for (stem, ratios) in summary {
         let cells: Vec<String> = ratios
             .into_iter()

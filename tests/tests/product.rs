@@ -54,6 +54,7 @@ fn product(
         Arc::new(map.clone()),
         options.block_columns,
         options.points_per_side,
+        options.sub_cells,
     )?;
     ProductSampler::new(base, Arc::new(env), normal, options)
 }

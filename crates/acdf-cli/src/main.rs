@@ -147,7 +147,7 @@ enum Command {
     /// Render a sphere under an environment map with BRDF, light and MIS
     /// sampling and compare with a reference, or export the scene for
     /// Mitsuba 3.
-    Render(render::Args),
+    Render(Box<render::Args>),
     /// Sampling throughput (samples per second) of the 2D distributions and
     /// the BRDF samplers, and the build time of the 4D tables; a table on
     /// stdout, optionally JSON.
@@ -229,7 +229,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Report(a) => report::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Survey(a) => survey::run(a),
-        Command::Render(a) => render::run(a),
+        Command::Render(a) => render::run(*a),
         Command::Bench(a) => bench::run(a),
         Command::EnvSample(a) => env_sample::run(a),
         Command::EnvPdf(a) => env_pdf::run(a),

@@ -70,6 +70,30 @@ pub struct Args {
     /// each technique), averaged: several share one camera ray.
     #[arg(long, value_name = "K", default_value_t = 1)]
     product_draws: usize,
+    /// Draws of the BRDF sampler per shading point of a product query that
+    /// estimate each block's BRDF mass times its light, from 0 (the point
+    /// densities alone) to 65,536; they see a lobe narrower than a block.
+    /// At equal CPU time they did not pay in the renders of
+    /// docs/rendering.md.
+    #[arg(long, value_name = "N", default_value_t = ProductOptions::default().mass_draws)]
+    product_mass_draws: usize,
+    /// How many mass draws must land in a block before their estimate
+    /// counts half: a block of c draws weighs the larger of its point
+    /// estimate (--product-points) and c / (c + C) × its mass estimate.
+    #[arg(long, value_name = "C", default_value_t = ProductOptions::default().mass_prior)]
+    product_mass_prior: f32,
+    /// Sub-cells per block side (fewer where a block has fewer texels), from
+    /// 1 to 4: inside a drawn block, a sub-cell is drawn by its light
+    /// times the BRDF density at its centre (1: texels by light alone).
+    /// 1 by default here: the sub-cells' tables and look-ups cost more CPU
+    /// time than they saved in the renders of docs/rendering.md (the
+    /// product sampler's own default is 4).
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    product_sub_cells: usize,
+    /// The share, in [0, 1], of the sub-cell draws inside a block by light
+    /// alone, which keeps every lit sub-cell drawable.
+    #[arg(long, value_name = "G", default_value_t = ProductOptions::default().refine_light_share)]
+    product_light_share: f32,
     /// Also write the equal-sample, equal-time and equal-CPU-time tables
     /// as JSON, with the scene, the reference and each strategy's timings.
     #[arg(long, value_name = "FILE")]
@@ -274,6 +298,10 @@ fn run_scene(
     let product_options = ProductOptions {
         block_columns: a.product_blocks,
         points_per_side: a.product_points,
+        mass_draws: a.product_mass_draws,
+        mass_prior: a.product_mass_prior,
+        sub_cells: a.product_sub_cells,
+        refine_light_share: a.product_light_share,
         ..ProductOptions::default()
     };
     let product_env = if strategies.iter().any(|s| s.is_product()) {
@@ -282,13 +310,14 @@ fn run_scene(
             map.clone(),
             product_options.block_columns,
             product_options.points_per_side,
+            product_options.sub_cells,
         )?)
     } else {
         None
     };
     let product = product_env.as_ref().map(|env| ProductLight {
         env,
-        defensive: product_options.defensive,
+        options: product_options,
         draws: a.product_draws,
     });
     let shader = |strategy: Strategy| Shader {
@@ -442,8 +471,13 @@ fn run_scene(
             Some(r.last.moments()),
             Some(r.last.queries()),
         );
-        let seconds_per_pixel_setup =
-            shader(strategy).seconds_per_pixel_setup(&camera, size, a.seed, a.timing_repeats);
+        let seconds_per_pixel_setup = shader(strategy).seconds_per_pixel_setup(
+            &camera,
+            size,
+            a.seed,
+            a.timing_repeats,
+            Some(r.last.queries()),
+        );
         // The queries are no longer needed; the render at equal CPU time and the next strategy's take
         // their memory.
         r.at_spp.drop_queries();

@@ -1173,6 +1173,10 @@ fn render_equal_time_runs_at_least_one_pass() {
         ("--product-draws=0", "product-draws"),
         ("--product-blocks=0", "block columns"),
         ("--product-points=2000", "points per side"),
+        ("--product-sub-cells=5", "sub-cells per side"),
+        ("--product-mass-draws=100000", "mass draws"),
+        ("--product-mass-prior=-1", "mass prior"),
+        ("--product-light-share=2", "refinement light share"),
     ] {
         let o = acdf(&[
             "render",

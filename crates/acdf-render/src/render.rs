@@ -55,7 +55,7 @@ use std::time::{Duration, Instant};
 
 use std::sync::Arc;
 
-use acdf::product::{ProductEnv, ProductQuery};
+use acdf::product::{ProductEnv, ProductOptions, ProductQuery};
 use acdf_core::{Brdf, BxdfSampler, Frame, Light, Rgb, Vec2, Vec3};
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
@@ -553,7 +553,8 @@ pub struct Shader<'a> {
 }
 
 /// The product sampler's side of a scene: the map's blocks and the
-/// defensive share δ of the queries.
+/// options of the queries (the defensive share δ, the BRDF draws and
+/// shares that weigh the blocks and their sub-cells).
 ///
 /// Amortisation: a [`ProductQuery`] (one BRDF density per evaluation point
 /// of the map's blocks above the horizon) costs as much as a hundred
@@ -572,8 +573,8 @@ pub struct Shader<'a> {
 pub struct ProductLight<'a> {
     /// The map's blocks.
     pub env: &'a ProductEnv,
-    /// δ, in [0, 1].
-    pub defensive: f32,
+    /// The queries' options (its block and sub-cell counts are `env`'s).
+    pub options: ProductOptions,
     /// Directions drawn per shading point, averaged, at least 1:
     /// more share a camera ray and its hit among several directions.
     pub draws: usize,
@@ -772,7 +773,7 @@ impl Shader<'_> {
                 p.env,
                 &[(at.frame, at.wo)],
                 at.surface.sampler,
-                p.defensive,
+                &p.options,
             )));
         }
         slot.as_deref()
@@ -825,7 +826,7 @@ impl Shader<'_> {
                 p.env,
                 &at,
                 self.sphere.sampler,
-                p.defensive,
+                &p.options,
             )));
         }
     }
@@ -987,22 +988,28 @@ impl Shader<'_> {
     /// CPU seconds per pixel, on the calling thread, of what a pixel
     /// costs once whatever its number of samples: forming its product
     /// query ([`Shader::form_pixel_query`], [`Strategy::Product`],
-    /// [`Strategy::MisProduct`]; 0 for the other strategies). The fastest
-    /// of `repeats` timed passes of one sample per pixel starting without
-    /// queries, less the same pass with the queries formed. With
-    /// [`seconds_per_camera_sample`](Self::seconds_per_camera_sample) t,
-    /// a budget of B seconds for P pixels buys (B / P − setup) / t samples
-    /// per pixel.
+    /// [`Strategy::MisProduct`]; 0 for the other strategies) and the
+    /// sub-cell tables its samples form on first use. The fastest of
+    /// `repeats` timed passes of one sample per pixel starting without
+    /// queries, less the same pass with the queries formed; plus, for
+    /// `rendered` (the pixels' queries after a render, [`Film::queries`]),
+    /// the fastest of `repeats` timed formations of the tables those
+    /// queries formed, in fresh copies. With
+    /// [`seconds_per_camera_sample`](Self::seconds_per_camera_sample) t
+    /// (which draws from the render's queries, their tables formed), a
+    /// budget of B seconds for P pixels buys (B / P − setup) / t samples
+    /// per pixel; the tables are charged at the count the render formed.
     pub fn seconds_per_pixel_setup(
         &self,
         camera: &Camera,
         size: (usize, usize),
         seed: u64,
         repeats: usize,
+        rendered: Option<&[QuerySlot]>,
     ) -> f64 {
-        if !self.strategy.is_product() {
+        let Some(light) = self.product.filter(|_| self.strategy.is_product()) else {
             return 0.0;
-        }
+        };
         let pixels = size.0.max(1) * size.1.max(1);
         let mut formed: Vec<QuerySlot> = vec![None; pixels];
         // Form the queries the timed passes then draw from.
@@ -1011,7 +1018,25 @@ impl Shader<'_> {
         self.one_pass(camera, size, seed, 0, &fractions, &mut moments, &mut formed);
         let with = self.timed_passes(camera, size, seed, repeats, 1, None, Some(&formed));
         let without = self.timed_passes(camera, size, seed, repeats, 1, None, None);
-        (without - with).max(0.0) / pixels as f64
+        let mut tables = 0.0;
+        if let Some(rendered) = rendered {
+            let blocks: Vec<(&ProductQuery, Vec<usize>)> = rendered
+                .iter()
+                .flatten()
+                .map(|q| (q.as_ref(), q.formed_blocks()))
+                .collect();
+            let mut best = f64::INFINITY;
+            for _ in 0..repeats.max(1) {
+                let fresh: Vec<ProductQuery> = blocks.iter().map(|(q, _)| q.unformed()).collect();
+                let start = acdf_experiments::efficiency::thread_seconds();
+                for (q, (_, b)) in fresh.iter().zip(&blocks) {
+                    q.form_blocks(light.env, self.sphere.sampler, b);
+                }
+                best = best.min(acdf_experiments::efficiency::thread_seconds() - start);
+            }
+            tables = best;
+        }
+        ((without - with).max(0.0) + tables) / pixels as f64
     }
 
     /// The fastest of `repeats` timed runs of `rounds` passes of one
@@ -1954,7 +1979,12 @@ mod tests {
             mis_fraction: DEFAULT_MIS_FRACTION,
             product: Some(ProductLight {
                 env,
-                defensive: 0.15,
+                // Both the mass draws and the sub-cells (the map's blocks
+                // are cut into sub-cells by the tests' ProductEnv).
+                options: ProductOptions {
+                    mass_draws: 64,
+                    ..ProductOptions::default()
+                },
                 draws,
             }),
         }
@@ -2002,7 +2032,7 @@ mod tests {
             uniform_env_sampler(&map, TableKind::Compensated).unwrap(),
         ));
         let z_of = |strategy, sampler: &dyn BxdfSampler, light: &dyn Light, blocks, draws| {
-            let env = ProductEnv::new(map.clone(), blocks, 1).unwrap();
+            let env = ProductEnv::new(map.clone(), blocks, 1, 4).unwrap();
             let shader = sphere_with_product(&lambert, sampler, light, strategy, &env, draws);
             pooled_z(&shader, 300)
         };
@@ -2064,7 +2094,7 @@ mod tests {
             map.clone(),
             acdf::env_registry::make_env_sampler("adaptive-comp", &map, &o).unwrap(),
         );
-        let env = ProductEnv::new(map.clone(), 32, 1).unwrap();
+        let env = ProductEnv::new(map.clone(), 32, 1, 4).unwrap();
         let shader =
             |strategy| sphere_with_product(nickel.as_ref(), &sampler, &light, strategy, &env, 1);
         let camera = Camera::default();

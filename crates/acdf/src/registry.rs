@@ -513,7 +513,7 @@ pub struct ProductSetting {
     pub env: Arc<ProductEnv>,
     /// The shading normal, in the map's frame.
     pub normal: Vec3,
-    /// Grid, points per cell, defensive share.
+    /// Grid, points per cell, sub-cells, draws and shares.
     pub options: ProductOptions,
 }
 
@@ -530,6 +530,7 @@ impl ProductSetting {
                 map,
                 options.block_columns,
                 options.points_per_side,
+                options.sub_cells,
             )?),
             normal,
             options,

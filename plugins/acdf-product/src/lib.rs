@@ -1,19 +1,22 @@
 //! `acdf-product` samples the product of the two factors of direct
 //! lighting from an environment map at one shading point: it draws the
 //! incident direction wi in proportion to f_r(wo, wi) cos θ_i · L(wi),
-//! resolved to blocks of the map in the BRDF factor and to the map's
+//! resolved to sub-cells of blocks of the map in the BRDF factor and to its
 //! texels in the light, instead of to one factor alone as a BRDF sampler
 //! or an environment sampler does. The BRDF factor is any BRDF sampler's
 //! density (which follows f_r cos θ_i), taken through
 //! `acdf_core::BxdfSampler`, so the family wraps whichever sampler the
-//! caller builds. The map is cut once into blocks of texels, each with its
-//! light and the CDFs that draw a texel inside it ([`ProductEnv`]). Per
-//! query (normal, wo), the BRDF sampler's density at a few points of each
-//! block above the horizon weighs the block's light; a block is drawn from
-//! these weights, a texel of it by its light, and wi uniformly in the
-//! texel. A defensive share δ of draws comes from the BRDF sampler itself,
-//! so the density, (1 − δ) × (block's share) × Y_t / M_b + δ × p_S(wo, wi),
-//! is exact and positive wherever the BRDF sampler's is
+//! caller builds. The map is cut once into blocks of texels and each block
+//! into sub-cells, each with its light and the CDFs that draw a texel
+//! inside it ([`ProductEnv`]). Per query (normal, wo), a few draws of the
+//! BRDF sampler (its mass in each block, which sees a lobe narrower than a
+//! block) and its density at a few points of each block weigh the blocks'
+//! light; a block is drawn from these weights, a sub-cell of it by its
+//! light times the BRDF density at its centre (formed the first time the
+//! block is needed), a texel by its light, and wi uniformly in the texel.
+//! A defensive share δ of draws comes from the BRDF sampler itself, so the
+//! density, (1 − δ) × (block's share) × (sub-cell's share) × Y_t / M_f +
+//! δ × p_S(wo, wi), is exact and positive wherever the BRDF sampler's is
 //! ([`ProductQuery`]). [`ProductSampler`] fixes the shading normal and is a
 //! `BxdfSampler`, so the conformance battery and `acdf sample`/`acdf pdf`
 //! use it as any other.
@@ -47,37 +50,72 @@ pub struct ProductOptions {
     /// δ: the share of draws from the BRDF sampler, in [0, 1]; above 0
     /// the density covers every direction the BRDF sampler's does.
     pub defensive: f32,
+    /// N: draws of the BRDF sampler per shading point that estimate each
+    /// block's BRDF mass times its light (0, the default: the point
+    /// densities alone; docs/environment.md measures where they help and
+    /// where they hurt).
+    pub mass_draws: usize,
+    /// c₀ ≥ 0: how many of the N draws must land in a block before its
+    /// mass counts half against its point densities (a block of c draws
+    /// weighs max(point estimate, c / (c + c₀) × mass estimate)).
+    pub mass_prior: f32,
+    /// k, 1 to 4: sub-cells per block side (fewer where a block has fewer
+    /// texels), drawn inside a block by light × the BRDF density at their centres;
+    /// 1 draws a block's texels by their light alone.
+    pub sub_cells: usize,
+    /// γ in [0, 1]: the share of a block's sub-cell draws by light alone.
+    pub refine_light_share: f32,
 }
 
 impl Default for ProductOptions {
-    /// 64 × 32 blocks, 2 × 2 points per block, δ = 0.15.
+    /// 64 × 32 blocks, 2 × 2 points per block, δ = 0.15, N = 0, c₀ = 64,
+    /// 4 × 4 sub-cells, γ = 0.1.
     fn default() -> Self {
         ProductOptions {
             block_columns: 64,
             points_per_side: 2,
             defensive: 0.15,
+            mass_draws: 0,
+            mass_prior: 64.0,
+            sub_cells: 4,
+            refine_light_share: 0.1,
         }
     }
 }
 
 impl ProductOptions {
-    /// A typed error for a count of 0 or above 1024, or δ outside [0, 1].
+    /// A typed error for a count of 0 or above 1024 (sub-cells: above 4,
+    /// draws: above 65,536),
+    /// a share outside [0, 1] or a mass prior below 0 or not finite.
     pub fn validate(&self) -> Result<()> {
-        for (name, v) in [
-            ("block columns", self.block_columns),
-            ("points per side", self.points_per_side),
+        for (name, v, lo, hi) in [
+            ("block columns", self.block_columns, 1, 1024),
+            ("points per side", self.points_per_side, 1, 1024),
+            ("sub-cells per side", self.sub_cells, 1, 4),
+            ("mass draws", self.mass_draws, 0, 65536),
         ] {
-            if !(1..=1024).contains(&v) {
+            if !(lo..=hi).contains(&v) {
                 return Err(Error::InvalidParameter {
                     name,
-                    reason: format!("{v} is not in 1..=1024"),
+                    reason: format!("{v} is not in {lo}..={hi}"),
                 });
             }
         }
-        if !(0.0..=1.0).contains(&self.defensive) {
+        for (name, v) in [
+            ("defensive share", self.defensive),
+            ("refinement light share", self.refine_light_share),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::InvalidParameter {
+                    name,
+                    reason: format!("{v} is not in [0, 1]"),
+                });
+            }
+        }
+        if !(self.mass_prior >= 0.0 && self.mass_prior.is_finite()) {
             return Err(Error::InvalidParameter {
-                name: "defensive share",
-                reason: format!("{} is not in [0, 1]", self.defensive),
+                name: "mass prior",
+                reason: format!("{} is not a finite count of at least 0", self.mass_prior),
             });
         }
         Ok(())
@@ -116,8 +154,8 @@ impl std::fmt::Debug for ProductSampler {
 
 impl ProductSampler {
     /// The product of `brdf`'s density and the map of `env` at the shading
-    /// normal `normal` (the map's frame; normalised), with the defensive
-    /// share of `options` (its block counts are `env`'s). A typed error
+    /// normal `normal` (the map's frame; normalised), with the shares and
+    /// draw count of `options` (its block and sub-cell counts are `env`'s). A typed error
     /// for a normal that is not finite or has no length, or bad options.
     pub fn new(
         brdf: Arc<dyn BxdfSampler>,
@@ -185,7 +223,7 @@ impl ProductSampler {
             &self.points,
             self.brdf.as_ref(),
             wo,
-            self.options.defensive,
+            &self.options,
         ));
         let mut recent = self.recent.lock().unwrap_or_else(|e| e.into_inner());
         if recent.len() >= RECENT_QUERIES {

@@ -45,7 +45,13 @@ fn sampler(map: &EnvMap, normal: Vec3, defensive: f32) -> ProductSampler {
         defensive,
         ..ProductOptions::default()
     };
-    let env = ProductEnv::new(Arc::new(map.clone()), options.block_columns, 2).unwrap();
+    let env = ProductEnv::new(
+        Arc::new(map.clone()),
+        options.block_columns,
+        2,
+        options.sub_cells,
+    )
+    .unwrap();
     ProductSampler::new(Arc::new(CosineSampler), Arc::new(env), normal, options).unwrap()
 }
 
@@ -73,48 +79,208 @@ fn draws_agree_with_the_density_and_follow_the_light() {
     assert_eq!(s.name(), "product:cosine");
 }
 
-/// The density integrates (midpoint rule on a fine (cos θ, φ) grid, a
-/// smooth map) to the share of draws that succeed: the blocks straddle
-/// the horizon, and draws of theirs below it are `None`.
+/// ∫ f dω over the sphere (world directions) by the midpoint rule on a
+/// lat-long grid `per` times finer than a `w` × `h` map's texels, so that
+/// no cell straddles a texel's edge.
+fn world_integral(w: usize, h: usize, per: usize, f: impl Fn(Vec3) -> f64) -> f64 {
+    let grid = acdf_lights::LatLong::new(w * per, h * per);
+    let mut sum = 0.0;
+    for j in 0..h * per {
+        let omega = grid.texel_solid_angle(j);
+        for k in 0..w * per {
+            sum += f(grid.texel_direction(k, j)) * omega;
+        }
+    }
+    sum
+}
+
+/// The density integrates (midpoint rule on a grid aligned with the
+/// texels, a smooth map) to the share of draws that succeed: the blocks
+/// straddle the horizon, and draws of theirs below it are `None`. With
+/// blocks of one texel, and with blocks of 4 × 4 texels drawn through
+/// their sub-cells (the refined density); with 64 mass draws.
 #[test]
 fn the_density_integrates_to_the_share_of_draws() {
     let map = EnvMap::from_fn(64, 32, |k, j| {
         Rgb::splat(1.0 + 0.1 * j as f32 + 0.05 * k as f32)
     })
     .unwrap();
-    for (normal, delta) in [
-        (Vec3::Z, 0.15),
-        (-Vec3::Z, 0.0),
-        (Vec3::new(1.0, -0.0, 0.2), 1.0),
-    ] {
-        let s = sampler(&map, normal, delta);
-        let wo = Vec3::new(0.5, -0.2, 0.6).normalize();
-        let (nz, nphi) = (400, 800);
-        let mut sum = 0f64;
-        for i in 0..nz {
-            for j in 0..nphi {
-                let z = (i as f32 + 0.5) / nz as f32;
-                let phi = std::f32::consts::TAU * (j as f32 + 0.5) / nphi as f32;
-                let r = (1.0 - z * z).sqrt();
-                sum += s.pdf(wo, Vec3::new(r * phi.cos(), r * phi.sin(), z)) as f64;
+    for block_columns in [64, 16] {
+        for (normal, delta) in [
+            (Vec3::Z, 0.15),
+            (-Vec3::Z, 0.0),
+            (Vec3::new(0.3, 0.4, 0.5), 0.0),
+            (Vec3::new(1.0, -0.0, 0.2), 1.0),
+        ] {
+            let options = ProductOptions {
+                defensive: delta,
+                block_columns,
+                mass_draws: 64,
+                ..ProductOptions::default()
+            };
+            let env = ProductEnv::new(Arc::new(map.clone()), block_columns, 2, 4).unwrap();
+            let s = ProductSampler::new(Arc::new(CosineSampler), Arc::new(env), normal, options)
+                .unwrap();
+            let frame = Frame::from_z(s.normal());
+            let wo = Vec3::new(0.5, -0.2, 0.6).normalize();
+            let integral = world_integral(64, 32, 8, |d| s.pdf(wo, frame.to_local(d)) as f64);
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+            let n = 100_000;
+            let drawn = (0..n)
+                .filter(|_| {
+                    s.sample(wo, Vec2::new(rng.random(), rng.random()))
+                        .is_some()
+                })
+                .count() as f64
+                / n as f64;
+            let case = format!("{block_columns} {normal} {delta}");
+            assert!(integral <= 1.0 + 2e-3, "{case}: {integral}");
+            assert!(
+                (integral - drawn).abs() < 5e-3,
+                "{case}: {integral} against {drawn}"
+            );
+        }
+    }
+}
+
+/// Directions uniform in the cone of half-angle α about `axis` (local):
+/// a narrow analytic lobe.
+struct ConeSampler {
+    axis: Vec3,
+    cos_alpha: f32,
+}
+
+impl BxdfSampler for ConeSampler {
+    fn name(&self) -> &str {
+        "cone"
+    }
+    fn sample(&self, wo: Vec3, u: Vec2) -> Option<BxdfSample> {
+        let z = 1.0 - u.x * (1.0 - self.cos_alpha);
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let phi = std::f32::consts::TAU * u.y;
+        let wi = Frame::from_z(self.axis).to_world(Vec3::new(r * phi.cos(), r * phi.sin(), z));
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0).then_some(BxdfSample { wi, pdf })
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if is_valid_outgoing(wo) && wi.z > 0.0 && wi.normalize().dot(self.axis) >= self.cos_alpha {
+            1.0 / (std::f32::consts::TAU * (1.0 - self.cos_alpha))
+        } else {
+            0.0
+        }
+    }
+    fn storage_bytes(&self) -> usize {
+        0
+    }
+}
+
+/// A lobe of 6° half-angle, narrower than a block (22.5°), across the
+/// edge of two blocks, neither of whose 2 × 2 points it reaches, with a
+/// one-texel sun in one of them: the blocks' weights from 64 draws of the BRDF
+/// sampler (their mass) give the sun's block a share within 0.1 of its true
+/// share of the product ∫_b p_S L dω (quadrature), where the point
+/// densities alone (N = 0) give no block a weight at all. Drawn through
+/// the sub-cells, the sun's share of the draws is within 0.1 of its true
+/// share too, where drawing the block's texels by light alone (k = 1)
+/// gives it less than half of that (most of the block's light lies
+/// outside the lobe).
+#[test]
+fn a_narrow_lobe_under_a_sun_gets_its_true_product_mass() {
+    let (w, h) = (512, 256);
+    let (sun_k, sun_j) = (98, 48);
+    let (sun_light, sky) = (400.0, 1.0);
+    let map = EnvMap::from_fn(w, h, |k, j| {
+        Rgb::splat(if (k, j) == (sun_k, sun_j) {
+            sun_light
+        } else {
+            sky
+        })
+    })
+    .unwrap();
+    let axis = map.direction_of(map.grid().texel_centre(96, 48));
+    let sun = map.direction_of(map.grid().texel_centre(sun_k, sun_j));
+    let cone = ConeSampler {
+        axis,
+        cos_alpha: 6f32.to_radians().cos(),
+    };
+    assert!(axis.z > 0.5 && sun.dot(axis) > cone.cos_alpha);
+    let wo = Vec3::new(0.1, 0.2, 0.9).normalize();
+    let frame = Frame::from_z(Vec3::Z);
+    let map = Arc::new(map);
+    let env = ProductEnv::new(map.clone(), 16, 2, 4).unwrap();
+    let block_of = |d: Vec3| env.cell_density(d).unwrap().0;
+    let (sun_block, other) = (
+        block_of(sun),
+        block_of(map.direction_of(map.grid().texel_centre(94, 48))),
+    );
+    assert_ne!(sun_block, other);
+    // The true product mass per block, and the sun's texel's part.
+    let mut mass = vec![0f64; env.block_count()];
+    let mut sun_mass = 0.0;
+    let fine = acdf_lights::LatLong::new(4 * w, 4 * h);
+    for j in 0..4 * h {
+        let omega = fine.texel_solid_angle(j);
+        for k in 0..4 * w {
+            let d = fine.texel_direction(k, j);
+            let p = cone.pdf(wo, d) as f64;
+            if p > 0.0 {
+                let m = p * map.radiance(d).x as f64 * omega;
+                mass[block_of(d)] += m;
+                if map.texel_of(d) == Some((sun_k, sun_j)) {
+                    sun_mass += m;
+                }
             }
         }
-        let integral = sum * std::f64::consts::TAU / (nz * nphi) as f64;
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
-        let n = 100_000;
-        let drawn = (0..n)
-            .filter(|_| {
-                s.sample(wo, Vec2::new(rng.random(), rng.random()))
-                    .is_some()
-            })
-            .count() as f64
-            / n as f64;
-        assert!(integral <= 1.0 + 2e-3, "{normal} {delta}: {integral}");
-        assert!(
-            (integral - drawn).abs() < 5e-3,
-            "{normal} {delta}: {integral} against {drawn}"
-        );
     }
+    let total: f64 = mass.iter().sum();
+    let true_share = mass[sun_block] / total;
+    assert!((0.3..0.95).contains(&true_share), "{true_share}");
+    let query = |env: &ProductEnv, options: ProductOptions| {
+        let points = env.local_points(&frame);
+        ProductQuery::build(env, frame, &points, &cone, wo, &options)
+    };
+    let with_mass = ProductOptions {
+        mass_draws: 64,
+        ..ProductOptions::default()
+    };
+    let q = query(&env, with_mass);
+    let share = q.block_share(sun_block) as f64;
+    eprintln!("sun block: true share {true_share:.3}, mass-weighted {share:.3}");
+    assert!(
+        (share - true_share).abs() < 0.1,
+        "{share} against {true_share}"
+    );
+    let points_only = query(
+        &env,
+        ProductOptions {
+            mass_draws: 0,
+            ..ProductOptions::default()
+        },
+    );
+    assert_eq!(points_only.grid_share(), 0.0);
+    // The share of block draws that reach the sun's texel, against its
+    // share of the product.
+    let sun_draws = |env: &ProductEnv, q: &ProductQuery| {
+        let n = 20_000;
+        let hits = (0..n)
+            .filter(|&i| {
+                let u = Vec2::new(
+                    (i as f32 + 0.5) / n as f32 * 0.85 + 0.15,
+                    ((i as f32) * 0.618_034).fract(),
+                );
+                q.sample(env, &cone, u)
+                    .is_some_and(|d| map.texel_of(frame.to_world(d.wi)) == Some((sun_k, sun_j)))
+            })
+            .count();
+        hits as f64 / n as f64
+    };
+    let want = sun_mass / total;
+    let refined = sun_draws(&env, &q);
+    let coarse = ProductEnv::new(map.clone(), 16, 2, 1).unwrap();
+    let unrefined = sun_draws(&coarse, &query(&coarse, with_mass));
+    eprintln!("draws on the sun: true {want:.3}, refined {refined:.3}, light alone {unrefined:.3}");
+    assert!((refined - want).abs() < 0.1, "{refined} against {want}");
+    assert!(unrefined < 0.5 * want, "{unrefined} against {want}");
 }
 
 /// A black map leaves the BRDF sampler alone; bad input is refused or
@@ -131,7 +297,7 @@ fn black_maps_and_bad_input() {
     assert_eq!(s.pdf(-wo, wo), 0.0);
     assert_eq!(s.pdf(wo, -wo), 0.0);
     assert_eq!(s.pdf(wo, Vec3::new(f32::NAN, 0.0, 1.0)), 0.0);
-    let env = Arc::new(ProductEnv::new(Arc::new(black), 8, 1).unwrap());
+    let env = Arc::new(ProductEnv::new(Arc::new(black), 8, 1, 4).unwrap());
     let bad_normal = ProductSampler::new(
         Arc::new(CosineSampler),
         env,
@@ -179,14 +345,14 @@ fn a_query_used_at_another_shading_point_keeps_an_exact_density() {
         })
     })
     .unwrap();
-    let env = ProductEnv::new(Arc::new(map.clone()), 32, 1).unwrap();
+    let env = ProductEnv::new(Arc::new(map.clone()), 32, 1, 4).unwrap();
     let frame_of = |x: f32, y: f32| Frame::from_z(Vec3::new(x, y, 1.0).normalize());
     let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
     let q = ProductQuery::build_over(
         &env,
         &[(frame_of(0.3, 0.0), wo), (frame_of(0.4, 0.1), wo)],
         &CosineSampler,
-        0.15,
+        &ProductOptions::default(),
     );
     assert!(q.grid_share() > 0.8);
     // The third point: a normal 20 degrees away, another wo.
