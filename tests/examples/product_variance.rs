@@ -144,14 +144,12 @@ fn main() {
         n_cos: 256,
         n_phi: 512,
     };
-    println!(
-        "map,material,normal,theta_o,brdf,light,mis,{}",
-        variants
-            .iter()
-            .map(|(n, _)| n.as_str())
-            .collect::<Vec<_>>()
-            .join(",")
-    );
+    let names = variants
+        .iter()
+        .map(|(n, _)| n.as_str())
+        .collect::<Vec<_>>()
+        .join(",");
+    println!("map,material,normal,theta_o,brdf,light,mis,{names}");
     let mut summary = Vec::new();
     for stem in [
         "empty_warehouse_01",
@@ -222,14 +220,7 @@ fn main() {
     println!(
         "product relative variance / best of (brdf, light, mis): median [worst] over the cases"
     );
-    println!(
-        "map,{}",
-        variants
-            .iter()
-            .map(|(n, _)| n.as_str())
-            .collect::<Vec<_>>()
-            .join(",")
-    );
+    println!("map,{names}");
     for (stem, ratios) in summary {
         let cells: Vec<String> = ratios
             .into_iter()

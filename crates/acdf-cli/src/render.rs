@@ -478,22 +478,24 @@ fn run_scene(
             a.timing_repeats,
             Some(r.last.queries()),
         );
-        // The queries are no longer needed; the render at equal CPU time and the next strategy's take
-        // their memory.
+        // The queries are no longer needed; the render at equal CPU time
+        // and the next strategy's take their memory.
         r.at_spp.drop_queries();
         r.last.drop_queries();
         let rmse_at_spp = r.at_spp.rmse(&reference).unwrap_or(f64::NAN);
         // Equal CPU time: the samples per pixel the budget buys after each
         // pixel's setup. With independent pixel samples the error falls as
         // 1/sqrt(samples) and the RMSE at --spp is scaled to them; a
-        // stratified pattern's falls faster, so it is rendered anew.
-        let pixels = (size.0 * size.1) as f64;
-        let spp_in_budget = (cpu_budget / pixels - seconds_per_pixel_setup).max(0.0)
+        // stratified pattern's falls faster, so it is rendered anew at the
+        // whole number.
+        let independent = a.pixel_sampling == PixelSampling::Independent;
+        let bought = (cpu_budget / (size.0 * size.1) as f64 - seconds_per_pixel_setup).max(0.0)
             / seconds_per_sample.max(1e-300);
-        let rmse_in_budget = if spp_in_budget.is_nan() || spp_in_budget < 1.0 {
+        let spp_in_budget = if independent { bought } else { bought.floor() };
+        let rmse_in_budget = if bought.is_nan() || bought < 1.0 {
             f64::INFINITY
-        } else if a.pixel_sampling == PixelSampling::Independent {
-            rmse_at_spp * (r.at_spp.samples_per_pixel() as f64 / spp_in_budget).sqrt()
+        } else if independent {
+            rmse_at_spp * (r.at_spp.samples_per_pixel() as f64 / bought).sqrt()
         } else {
             let spp = spp_in_budget.min(u32::MAX as f64) as usize;
             let pb = bar(
@@ -512,11 +514,6 @@ fn run_scene(
             pb.finish_and_clear();
             b.last.drop_queries();
             b.last.rmse(&reference).unwrap_or(f64::NAN)
-        };
-        let spp_in_budget = if a.pixel_sampling == PixelSampling::Independent {
-            spp_in_budget
-        } else {
-            spp_in_budget.floor()
         };
         let rmse_last = r.last.rmse(&reference).unwrap_or(f64::NAN);
         results.push(Result1 {

@@ -423,9 +423,22 @@ impl Camera {
         }
     }
 
+    /// The shift of pixel `pixel`'s stratified pattern under `seed`:
+    /// uniform, fixed per (seed, pixel) so that the passes continue one
+    /// sequence; zero (and no work) for the patterns without one.
+    pub fn pixel_shift(&self, seed: u64, pixel: usize) -> Vec2 {
+        if self.pixel_sampling != PixelSampling::Stratified {
+            return Vec2::ZERO;
+        }
+        let mut rng =
+            rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed ^ 0x51A7_0000, u64::MAX, pixel));
+        Vec2::new(rng.random(), rng.random())
+    }
+
     /// The image point of the `index`-th sample of pixel (`col`, `row`)
-    /// of a `width` × `height` image, with the pixel's `shift` (see
-    /// [`PixelSampling::offset`]); `rng` gives independent samples.
+    /// of a `width` × `height` image, with the pixel's `shift`
+    /// ([`pixel_shift`](Self::pixel_shift)); `rng` gives independent
+    /// samples.
     pub fn image_point(
         &self,
         (col, row): (usize, usize),
@@ -1110,7 +1123,7 @@ impl Shader<'_> {
                 rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed ^ 0x7133_0000, round as u64, pixel));
             let (row, col) = (pixel / width, pixel % width);
             self.form_pixel_query(camera, (col, row), (width, height), &mut queries[pixel]);
-            let shift = pixel_shift(seed, pixel);
+            let shift = camera.pixel_shift(seed, pixel);
             let p = camera.image_point((col, row), (width, height), round, shift, &mut rng);
             let d = camera.direction(p, aspect);
             acc += self.pixel_radiance(
@@ -1188,13 +1201,6 @@ pub fn pooled_fractions(moments: &[FractionMoments], width: usize, default: f32)
         box_line(&rows, &mut both, x, width, height);
     }
     both.iter().map(|m| m.best(default)).collect()
-}
-
-/// The shift of a pixel's stratified pattern: uniform, fixed per (`seed`,
-/// pixel) so that the passes continue one sequence.
-fn pixel_shift(seed: u64, pixel: usize) -> Vec2 {
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(pixel_seed(seed ^ 0x51A7_0000, u64::MAX, pixel));
-    Vec2::new(rng.random(), rng.random())
 }
 
 fn pixel_seed(seed: u64, pass: u64, pixel: usize) -> u64 {
@@ -1305,7 +1311,7 @@ impl Film {
                             pass,
                             row * width + col,
                         ));
-                        let shift = pixel_shift(seed, row * width + col);
+                        let shift = camera.pixel_shift(seed, row * width + col);
                         for k in 0..spp {
                             let p = camera.image_point(
                                 (col, row),
@@ -1960,7 +1966,8 @@ mod tests {
     }
 
     /// The sphere alone, of `brdf` drawn by `sampler`, under `light`, with
-    /// the product's blocks `env` (δ = 0.15, `draws` per shading point).
+    /// the product's blocks `env`: the default options (δ = 0.15) with 64
+    /// mass draws, `draws` per shading point.
     fn sphere_with_product<'a>(
         brdf: &'a dyn Brdf,
         sampler: &'a dyn BxdfSampler,
